@@ -1,0 +1,20 @@
+"""jaxdrift: Monte-Carlo drift analysis of force-driven multibody vehicle models in JAX.
+
+The public API is re-exported here from private modules (see docs/architecture.md).
+jaxdrift never switches on float64 at import: call ``jax.config.update("jax_enable_x64", True)``
+yourself (the CLI and the tests do).
+"""
+
+__version__ = "0.1.0"
+
+# --- engine (#2) ---
+
+# --- noise and Monte-Carlo runner (#2) ---
+
+# --- models and paper study (#3) ---
+
+# --- variance (#4) ---
+
+# --- diagnosis (#5) ---
+
+# --- attitude (#6) ---
