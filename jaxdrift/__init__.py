@@ -8,6 +8,10 @@ yourself (the CLI and the tests do).
 __version__ = "0.1.0"
 
 # --- engine (#2) ---
+from ._inputs import SampledSignal
+from ._sde import solve_sde
+from ._solve import RESULTS, Result, Solution, StepController, solve_ode
+from ._tableau import DOPRI5, ButcherTableau
 
 # --- noise and Monte-Carlo runner (#2) ---
 
