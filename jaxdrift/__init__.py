@@ -14,6 +14,7 @@ from ._solve import RESULTS, Result, Solution, StepController, solve_ode
 from ._tableau import DOPRI5, ButcherTableau
 
 # --- noise and Monte-Carlo runner (#2) ---
+from ._noise import apply_input_effects, path_normals, remove_input_effects, white_noise
 
 # --- models and paper study (#3) ---
 
