@@ -71,14 +71,14 @@ def test_expmap_exact_euler_first_order_dopri_accurate():
     np.testing.assert_allclose(Q.integrate_rates_np(q0, np.tile(w, (n + 1, 1)), T / n)[-1], exact, atol=1e-12)
     # Euler: |q|^2 grows by exactly (1 + |w|^2 dt^2 / 4) per step (FIELD-NOTES), error O(dt)
     errs = []
-    for n in (100, 200, 400, 800):
+    for n in (100, 200, 400):
         dt = T / n
         qe = np.asarray(Q.integrate_rates(q0, np.tile(w, (n + 1, 1)), dt, method="euler"))
         np.testing.assert_allclose(np.sum(qe[-1] ** 2), (1 + w @ w * dt**2 / 4) ** n, rtol=1e-12)
-        qr = np.asarray(Q.integrate_rates(q0, np.tile(w, (n + 1, 1)), dt, method="euler", renormalize=True))
-        np.testing.assert_allclose(np.linalg.norm(qr[-1]), 1.0, atol=1e-14)
         errs.append(np.linalg.norm(qe[-1] - exact))
-    slope = np.polyfit(np.log([100, 200, 400, 800]), np.log(errs), 1)[0]
+    qr = np.asarray(Q.integrate_rates(q0, np.tile(w, (401, 1)), T / 400, method="euler", renormalize=True))
+    np.testing.assert_allclose(np.linalg.norm(qr, axis=1), 1.0, atol=1e-14)
+    slope = np.polyfit(np.log([100, 200, 400]), np.log(errs), 1)[0]
     assert -1.1 < slope < -0.9
     qd = np.asarray(Q.integrate_rates(q0, np.tile(w, (201, 1)), T / 200, method="dopri5", rtol=1e-10, atol=1e-12))
     np.testing.assert_allclose(qd[-1], exact, atol=1e-8)
@@ -103,7 +103,7 @@ def test_numpy_helpers_agree_with_jax():
     np.testing.assert_allclose(a, ref, atol=1e-12)
 
 
-SIG, T1, DT, NP = 0.5, 2.0, 0.002, 400
+SIG, T1, DT, NP = 0.5, 2.0, 0.004, 400
 
 
 @pytest.fixture(scope="module")
@@ -148,7 +148,7 @@ def test_stratonovich_schemes_keep_the_norm(single_axis_paths):
 
 def test_angle_error_std_grows_like_sigma_sqrt_t():
     """Three noisy axes, moving body (3.11): each axis' error angle ~ sigma W(t), chi-square bounds."""
-    sig, t1, dt, n_paths = 0.02, 4.0, 0.004, 600
+    sig, t1, dt, n_paths = 0.02, 4.0, 0.01, 500
     n_steps = int(round(t1 / dt))
     tt = np.arange(n_steps) * dt
     omega = np.stack([0.3 * np.sin(2 * tt), 0.2 * np.cos(3 * tt), 0.5 + 0.0 * tt], 1)
