@@ -17,6 +17,25 @@ from ._tableau import DOPRI5, ButcherTableau
 from ._noise import apply_input_effects, path_normals, remove_input_effects, white_noise
 
 # --- models and paper study (#3) ---
+from ._halfcar import (
+    contact_forces,
+    enforced_moment,
+    equilibrium_forces,
+    force_driven_rhs,
+    pitch_spring_torque,
+    pitch_states_from_force_states,
+    prescribed_pitch_rhs,
+    road_driven_rhs,
+    spring_forces,
+    static_equilibrium,
+)
+from ._params import (
+    PAPER_PERTURBATION,
+    HalfCarParams,
+    PointMassParams,
+    random_perturbed_models,
+    stack_models,
+)
 
 # --- variance (#4) ---
 
