@@ -1,0 +1,981 @@
+"""Diagnosis of attitude runs (docs/measured-data.md): gyro noise, bias, scale, bias drift, sensor
+positions and rigidity of an accelerometer array, with 95 % intervals.
+
+Methods (all on the run itself, numpy; see docs/attitude.md for the derivations):
+
+- **Gyro noise** (always): the variance of the k-th differences of each rate channel, divided by
+  ``C(2k, k)``, is the white-noise variance once the (smooth) motion no longer contributes; the order
+  is raised until two consecutive orders agree. ``N = sigma_M sqrt(dt)``. Its standard error follows
+  from the MA(k) autocorrelation of differenced white noise (``sum rho^2 = C(4k,2k)/C(2k,k)^2``).
+  Allan deviation (allantools) of the best available error series gives N, B, K with fitted lines.
+- **Reference attitude** (rows with ``qw..qz``): between consecutive anchor rows the gyro-integrated
+  relative rotation is compared with the reference one; the global-frame error vector of each
+  interval is linear in the rate errors, ``e = sum_k R_k delta_k dt``, so biases (piecewise constant
+  over segments) and scales are fitted by Gauss-Newton weighted least squares with the noise
+  covariance ``N^2 dt_i I``. Bias drift (rate random walk) is tested and estimated by REML on the
+  segment biases, whose covariance under a random walk of intensity K is known in closed form.
+- **Static segment** (no reference): windows whose rate variance equals the white-noise variance and
+  whose means agree are taken as standing still (true rate 0): their mean is the bias.
+- **Accelerometer array**: per sample, the rigid-body model ``a_i = c + (alpha~ + W) r_i`` with
+  ``W = omega~ omega~`` from the gyro (bias-corrected for its noise) is fitted for ``c`` and ``alpha``;
+  the residual is the rigidity residual; sensor position corrections (and, without another bias
+  source, gyro biases through ``W``) are fitted by Gauss-Newton with block-sandwich covariances.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+
+import numpy as np
+from scipy import stats
+
+from ._quaternion import (
+    cumulative_quat_product_np,
+    integrate_rates_np,
+    quat_conjugate_np,
+    quat_exp_np,
+    quat_log_np,
+    quat_multiply_np,
+    rotation_angle_between_np,
+    rotation_matrix_np,
+    skew_np,
+)
+
+__all__ = ["run_attitude_diagnosis", "read_attitude_run", "read_sensors", "estimate_white_noise", "diagnose_attitude"]
+
+SCHEMA = "jaxdrift.diagnosis/1"
+CHANNELS = ("wx", "wy", "wz")
+Q_COLS = ("qw", "qx", "qy", "qz")
+Z_SIGNIFICANT = 5.0  # |estimate - null| / SE for a systematic finding (false alarms ~ 1e-6 per test)
+DRIFT_LR = 16.0  # REML likelihood-ratio threshold for a bias random walk
+POSITION_CHI2 = 40.0  # 3-dof chi-square threshold for a displaced sensor
+NONRIGID_FLOOR = 2e-3  # m/s^2: below this, a rigidity residual is not reported
+QUAT_NORM_TOL = 1e-3
+DRIFT_OFF_DEG = 0.5
+G = 9.81
+
+
+def _usage_error(msg):
+    from .cli import UsageError
+
+    return UsageError(msg)
+
+
+# --------------------------------------------------------------------------- input
+
+
+def _float_cells(path, lines, first_line, names, ncol):
+    """Parse a block of CSV lines into floats (NaN for empty cells); errors name the row and column."""
+    rows = [ln.split(",") for ln in lines]
+    for i, r in enumerate(rows):
+        if len(r) != ncol:
+            raise _usage_error(f"{path}, row {first_line + i}: {len(r)} cells, expected {ncol} as in the header")
+    arr = np.char.strip(np.array(rows, dtype=str)) if rows else np.zeros((0, ncol), str)
+    empty = arr == ""
+    arr = np.where(empty, "nan", arr)
+    try:
+        return arr.astype(float)
+    except ValueError:
+        for i, r in enumerate(arr):
+            for j, c in enumerate(r):
+                try:
+                    float(c)
+                except ValueError:
+                    raise _usage_error(f"{path}, row {first_line + i}, column {names[j]}: not a number: {c!r}") from None
+        raise
+
+
+def _decimal_step(s):
+    s = s.strip().lower()
+    mant, _, exp = s.partition("e")
+    e = int(exp) if exp else 0
+    dec = len(mant.partition(".")[2])
+    return 10.0 ** (e - dec)
+
+
+def read_attitude_run(path):
+    """Read and validate an attitude run CSV. Returns a dict; raises UsageError on bad input."""
+    if not os.path.isfile(path):
+        raise _usage_error(f"{path}: no such file")
+    with open(path) as fh:
+        text = fh.read()
+    lines = text.splitlines()
+    while lines and not lines[-1].strip():
+        lines.pop()
+    if not lines:
+        raise _usage_error(f"{path}: empty file")
+    names = [c.strip() for c in lines[0].split(",")]
+    if len(set(names)) != len(names):
+        dup = sorted({c for c in names if names.count(c) > 1})
+        raise _usage_error(f"{path}, row 1: duplicate column(s) {', '.join(dup)}")
+    for c in ("t",) + CHANNELS:
+        if c not in names:
+            raise _usage_error(f"{path}, row 1: required column {c} missing (attitude runs need t, wx, wy, wz)")
+    body = lines[1:]
+    if len(body) < 16:
+        raise _usage_error(f"{path}: only {len(body)} data rows; an attitude run needs at least 16")
+    ncol = len(names)
+    blocks = []
+    for s in range(0, len(body), 50_000):
+        blocks.append(_float_cells(path, body[s : s + 50_000], s + 2, names, ncol))
+    data = np.concatenate(blocks, 0)
+    col = {c: i for i, c in enumerate(names)}
+    # required columns: finite everywhere
+    for c in ("t",) + CHANNELS:
+        bad = ~np.isfinite(data[:, col[c]])
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise _usage_error(f"{path}, row {i + 2}, column {c}: empty, NaN or inf (required column)")
+    t = data[:, col["t"]]
+    dts = np.diff(t)
+    if np.any(dts <= 0):
+        i = int(np.argmax(dts <= 0))
+        raise _usage_error(f"{path}, row {i + 3}, column t: time not strictly increasing ({t[i]!r} then {t[i + 1]!r})")
+    dt = (t[-1] - t[0]) / (len(t) - 1)
+    jitter = np.abs(dts - dt) / dt
+    if np.any(jitter > 1e-6):
+        i = int(np.argmax(jitter > 1e-6))
+        raise _usage_error(
+            f"{path}, row {i + 3}, column t: non-uniform sampling (step {dts[i]:.9g} s, mean step {dt:.9g} s; "
+            "relative jitter must stay below 1e-6)"
+        )
+    w = data[:, [col[c] for c in CHANNELS]]
+    # reference attitude: all four columns or none; per row all four cells or none
+    present = [c for c in Q_COLS if c in col]
+    q_ref = None
+    if present:
+        if len(present) != 4:
+            missing = [c for c in Q_COLS if c not in col]
+            raise _usage_error(f"{path}, row 1: reference attitude needs qw, qx, qy, qz; missing {', '.join(missing)}")
+        q_ref = data[:, [col[c] for c in Q_COLS]]
+        fin = np.isfinite(q_ref)
+        partial = fin.any(1) & ~fin.all(1)
+        if partial.any():
+            i = int(np.argmax(partial))
+            j = int(np.argmax(~fin[i]))
+            raise _usage_error(f"{path}, row {i + 2}, column {Q_COLS[j]}: empty or NaN while other quaternion cells are set")
+        inf = np.isinf(q_ref).any(1)
+        if inf.any():
+            i = int(np.argmax(inf))
+            raise _usage_error(f"{path}, row {i + 2}: infinite quaternion component")
+        have = fin.all(1)
+        norms = np.linalg.norm(np.where(have[:, None], q_ref, 1.0), axis=1)
+        bad = have & (np.abs(norms - 1.0) > QUAT_NORM_TOL)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise _usage_error(
+                f"{path}, row {i + 2}, columns qw..qz: quaternion norm {norms[i]:.6g} is far from 1 "
+                f"(tolerance {QUAT_NORM_TOL:g})"
+            )
+        if not have.any():
+            q_ref = None
+        else:
+            q_ref = np.where(have[:, None], q_ref / norms[:, None], np.nan)
+    # accelerometer columns a1x, a1y, a1z, ...
+    acc_names = []
+    k = 1
+    while f"a{k}x" in col or f"a{k}y" in col or f"a{k}z" in col:
+        trip = [f"a{k}{a}" for a in "xyz"]
+        for c in trip:
+            if c not in col:
+                raise _usage_error(f"{path}, row 1: accelerometer {k} needs {', '.join(trip)}; column {c} missing")
+        acc_names.append(trip)
+        k += 1
+    acc = None
+    if acc_names:
+        idx = [[col[c] for c in trip] for trip in acc_names]
+        acc = data[:, idx]  # (n, N, 3)
+        bad = ~np.isfinite(acc)
+        if bad.any():
+            i, s_, a_ = (int(v[0]) for v in np.nonzero(bad))
+            raise _usage_error(f"{path}, row {i + 2}, column a{s_ + 1}{'xyz'[a_]}: empty, NaN or inf")
+    known = {"t", *CHANNELS, *Q_COLS, *(c for trip in acc_names for c in trip)}
+    extra = [c for c in names if c not in known]
+    stray_acc = [c for c in extra if len(c) >= 3 and c[0] == "a" and c[1:-1].isdigit() and c[-1] in "xyz"]
+    if stray_acc:
+        raise _usage_error(f"{path}, row 1: accelerometer column(s) {', '.join(stray_acc)} out of sequence (a1x.. must be contiguous)")
+    # quantisation step of the rate columns, from the text (to tell noise from rounding)
+    sample = body[:: max(1, len(body) // 5000)]
+    steps = []
+    wi = [col[c] for c in CHANNELS]
+    for ln in sample:
+        cells = ln.split(",")
+        for j in wi:
+            try:
+                steps.append(_decimal_step(cells[j]))
+            except (ValueError, IndexError):
+                pass
+    quant = float(np.sqrt(np.mean(np.square(steps)) / 12.0)) if steps else 0.0
+    return {"path": path, "t": t, "dt": dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra, "quantisation": quant}
+
+
+def read_sensors(path, n_expected=None):
+    """Read and validate ``{"positions": [[x, y, z], ...]}``: N >= 4 and positions not coplanar."""
+    if not os.path.isfile(path):
+        raise _usage_error(f"{path}: no such file")
+    try:
+        with open(path) as fh:
+            obj = json.load(fh)
+    except json.JSONDecodeError as e:
+        raise _usage_error(f"{path}: not valid JSON ({e})") from None
+    if not isinstance(obj, dict) or "positions" not in obj:
+        raise _usage_error(f'{path}: expected an object {{"positions": [[x, y, z], ...]}}')
+    pos = obj["positions"]
+    if not isinstance(pos, list):
+        raise _usage_error(f"{path}: positions must be a list of [x, y, z]")
+    for i, p in enumerate(pos):
+        if not (isinstance(p, list) and len(p) == 3 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
+            raise _usage_error(f"{path}: positions[{i}] (sensor {i + 1}) must be three numbers, got {p!r}")
+        if not all(math.isfinite(v) for v in p):
+            raise _usage_error(f"{path}: positions[{i}] (sensor {i + 1}) is not finite")
+    r = np.asarray(pos, float).reshape(-1, 3)
+    if r.shape[0] < 4:
+        raise _usage_error(f"{path}: {r.shape[0]} sensor(s); the array needs at least 4 (m + 1 >= 4, section 3.1)")
+    if n_expected is not None and r.shape[0] != n_expected:
+        raise _usage_error(f"{path}: {r.shape[0]} positions but the run has {n_expected} accelerometers (a1x..a{n_expected}z)")
+    from ._accel_array import check_positions
+
+    msg = check_positions(r)
+    if msg:
+        raise _usage_error(f"{path}: {msg}")
+    return r
+
+
+# --------------------------------------------------------------------------- noise
+
+
+def estimate_white_noise(x, dt, max_order: int = 8):
+    """White-noise standard deviation of each column of ``x`` from k-th differences.
+
+    Returns a dict with ``sigma`` (per column, per sample), ``var_se``, ``order`` and ``plateau``
+    (False when the motion still dominated the highest order: then ``sigma`` is an upper bound).
+    """
+    x = np.asarray(x, float)
+    n = x.shape[0]
+    ests = []
+    for k in range(1, max_order + 1):
+        if n - k < 8:
+            break
+        d = np.diff(x, k, axis=0)
+        ck = math.comb(2 * k, k)
+        v = np.mean(d * d, axis=0) / ck
+        rho2 = math.comb(4 * k, 2 * k) / ck**2
+        se = v * np.sqrt(2.0 * rho2 / d.shape[0])
+        ests.append((k, v, se))
+    chosen = None
+    for (k, v, se), (k2, v2, se2) in zip(ests[:-1], ests[1:]):
+        if np.all(np.abs(v - v2) <= 3.0 * np.maximum(se, se2) + 1e-300):
+            chosen = (k2, v2, se2)
+            break
+    plateau = chosen is not None
+    if chosen is None:
+        chosen = min(ests, key=lambda e: float(np.sum(e[1])))
+    k, v, se = chosen
+    return {"sigma": np.sqrt(v), "var": v, "var_se": se, "order": k, "plateau": plateau, "dt": dt}
+
+
+# --------------------------------------------------------------------------- reference fit
+
+
+def _interval_sums(X, starts, ends):
+    """Sums of rows ``X[starts[i]:ends[i]]`` (contiguous, ends[i] == starts[i+1])."""
+    c = np.concatenate([np.zeros((1,) + X.shape[1:]), np.cumsum(X, 0)], 0)
+    return c[ends] - c[starts]
+
+
+def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=8):
+    """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
+
+    ``seg_of_interval_per_channel``: list of 3 int arrays (segment index of each interval per channel).
+    ``noise_var``: N^2 for the weights; ``sample_var``: per-channel white-noise variance per sample
+    (for the errors-in-variables correction of the scale).
+    Returns parameters, covariance, residual chi-square and helpers.
+    """
+    w = run["w"]
+    dt = run["dt"]
+    q_ref = run["q_ref"]
+    a0, aN = anchors[0], anchors[-1]
+    starts, ends = anchors[:-1], anchors[1:]
+    n_int = len(starts)
+    nseg = [int(s.max()) + 1 for s in seg_of_interval_per_channel]
+    offs = np.concatenate([[0], np.cumsum(nseg)])
+    p = int(offs[-1]) + 3
+    theta = np.zeros(p)
+    theta[offs[-1] :] = 1.0
+    rows = np.arange(a0, aN)
+    int_of_row = np.searchsorted(anchors, rows, side="right") - 1
+    dt_int = (ends - starts) * dt
+    wts = 1.0 / (noise_var * dt_int)  # per interval (each of 3 components)
+    for it in range(max_iter):
+        b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
+        s = theta[offs[-1] :]
+        wc = (w[a0:aN] - b_rows) / s
+        d = quat_exp_np(wc * dt)
+        # per-interval integration: prefix products restart at every anchor (re-anchored on the reference)
+        P = np.empty((len(rows) + 1, 4))
+        P[0] = [1, 0, 0, 0]
+        P[1:] = cumulative_quat_product_np(d)
+        P /= np.linalg.norm(P, axis=1, keepdims=True)
+        Pa = P[starts - a0]
+        Pb = P[ends - a0]
+        rel = quat_multiply_np(quat_conjugate_np(Pa), Pb)  # gyro relative rotation over each interval
+        qa = q_ref[starts]
+        qb = q_ref[ends]
+        err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
+        e = quat_log_np(err_q)  # (n_int, 3) global frame
+        # attitude of each row, anchored on its interval's reference
+        anc = anchors[int_of_row]
+        G = quat_multiply_np(quat_multiply_np(q_ref[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
+        R = rotation_matrix_np(G) * dt  # (rows, 3, 3)
+        J = np.zeros((n_int, 3, p))
+        RB = _interval_sums(R, starts - a0, ends - a0)  # (n_int, 3, 3)
+        RS = _interval_sums(R * wc[:, None, :], starts - a0, ends - a0)
+        for c in range(3):
+            cols = offs[c] + seg_of_interval_per_channel[c]
+            J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
+            J[:, :, offs[-1] + c] = -RS[:, :, c] / s[c]
+        Jf = J.reshape(-1, p)
+        ef = e.reshape(-1)
+        Wf = np.repeat(wts, 3)
+        H = Jf.T @ (Wf[:, None] * Jf)
+        g = Jf.T @ (Wf * ef)
+        # errors in variables: the scale regressor sum R omega_c dt carries the same white noise as e;
+        # remove the expected product, (1/s^2) sum_i w_i n_i sigma_c^2 dt^2, from score and Hessian
+        for c in range(3):
+            eiv = float(np.sum(wts * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
+            g[offs[-1] + c] += eiv
+            H[offs[-1] + c, offs[-1] + c] -= eiv
+        step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
+        theta = theta + step
+        if np.max(np.abs(step)) < 1e-12 + 1e-9 * np.max(np.abs(theta)):
+            break
+    # residual after the last step (linearised)
+    res = ef + Jf @ step
+    chi2 = float(np.sum(Wf * res**2))
+    dof = max(1, len(ef) - p)
+    cov = np.linalg.pinv(H, rcond=1e-12)
+    return {
+        "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
+        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int,
+    }
+
+
+def _rw_cov(bounds):
+    """Covariance of segment means of a standard Brownian motion W(0) = 0 over [bounds[m], bounds[m+1])."""
+    mid = 0.5 * (bounds[:-1] + bounds[1:])
+    L = np.diff(bounds)
+    M = len(L)
+    S = np.empty((M, M))
+    for i in range(M):
+        for j in range(M):
+            if i == j:
+                S[i, j] = bounds[i] + L[i] / 3.0
+            else:
+                S[i, j] = mid[min(i, j)]
+    return S
+
+
+def _reml_drift(b, V, S_rw):
+    """REML for ``b ~ N(beta 1, V + K^2 S_rw)``: MLE of K, 95 % profile interval, LR vs K = 0, beta."""
+    M = len(b)
+    X = np.ones((M, 1))
+
+    def ll(K2):
+        Sig = V + K2 * S_rw
+        try:
+            L = np.linalg.cholesky(Sig)
+        except np.linalg.LinAlgError:
+            return -np.inf, 0.0, np.inf
+        Li = np.linalg.inv(L)
+        Si = Li.T @ Li
+        xsx = float((X.T @ Si @ X)[0, 0])
+        beta = float((X.T @ Si @ b)[0]) / xsx
+        r = b - beta
+        val = -0.5 * (2 * np.sum(np.log(np.diag(L))) + np.log(xsx) + float(r @ Si @ r))
+        return val, beta, 1.0 / xsx
+
+    scale = max(float(np.max(np.abs(np.diff(b)))), 1e-30) ** 2 / max(float(np.max(np.diag(S_rw))), 1e-30)
+    grid = np.concatenate([[0.0], scale * np.logspace(-8, 3, 400)])
+    vals = np.array([ll(k2)[0] for k2 in grid])
+    i = int(np.argmax(vals))
+    # refine around the max
+    lo_k, hi_k = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    fine = np.linspace(lo_k, hi_k, 200)
+    fv = np.array([ll(k2)[0] for k2 in fine])
+    j = int(np.argmax(fv))
+    K2hat, lmax = fine[j], fv[j]
+    allg = np.concatenate([grid, fine])
+    allv = np.concatenate([vals, fv])
+    order = np.argsort(allg)
+    allg, allv = allg[order], allv[order]
+    inside = allv >= lmax - 0.5 * stats.chi2.ppf(0.95, 1)
+    k2lo, k2hi = allg[inside].min(), allg[inside].max()
+    lr = 2.0 * (lmax - vals[0])
+    _, beta, beta_var = ll(K2hat)
+    return {"K": math.sqrt(K2hat), "interval": [math.sqrt(k2lo), math.sqrt(k2hi)], "lr": lr, "beta": beta, "beta_var": beta_var}
+
+
+# --------------------------------------------------------------------------- static segment
+
+
+def _static_segment(w, dt, sigma):
+    n = w.shape[0]
+    W = int(max(50, round(0.5 / dt)))
+    nw = n // W
+    if nw < 4:
+        return None
+    x = w[: nw * W].reshape(nw, W, 3)
+    m = x.mean(1)
+    v = x.var(1, ddof=1)
+    s2 = np.maximum(sigma**2, 1e-30)
+    ok_var = np.all(v / s2 < 1.0 + 5.0 * np.sqrt(2.0 / W), axis=1)
+    ok_mean = np.ones(nw, bool)
+    dm = np.abs(np.diff(m, axis=0))
+    cons = np.all(dm < 5.0 * np.sqrt(2.0 * s2 / W) + 1e-12, axis=1)
+    static = ok_var.copy()
+    # a static window must agree in mean with a static neighbour
+    ok_mean[:] = False
+    ok_mean[:-1] |= cons & ok_var[1:]
+    ok_mean[1:] |= cons & ok_var[:-1]
+    static &= ok_mean
+    best, cur, start = (0, 0), 0, 0
+    for i, s in enumerate(static):
+        if s:
+            if cur == 0:
+                start = i
+            cur += 1
+            if cur > best[1] - best[0]:
+                best = (start, start + cur)
+        else:
+            cur = 0
+    i0, i1 = best
+    if i1 - i0 < 4 or (i1 - i0) * W * dt < 2.0:
+        return None
+    seg = w[i0 * W : i1 * W]
+    return {"rows": (i0 * W, i1 * W), "mean": seg.mean(0), "n": seg.shape[0], "data": seg}
+
+
+# --------------------------------------------------------------------------- accelerometer array
+
+
+def _moving_average(x, k):
+    if k <= 1:
+        return x
+    c = np.cumsum(np.concatenate([np.zeros((1, x.shape[1])), x], 0), 0)
+    y = (c[k:] - c[:-k]) / k
+    pad0 = (k - 1) // 2
+    return np.concatenate([np.repeat(y[:1], pad0, 0), y, np.repeat(y[-1:], x.shape[0] - y.shape[0] - pad0, 0)], 0)
+
+
+def _array_residual(acc, r, W):
+    """Rigid-model residual per sample: a_i - W r_i - (c + alpha x r_i) projected out. (n, N, 3)."""
+    N = r.shape[0]
+    D = np.zeros((3 * N, 6))
+    for i in range(N):
+        D[3 * i : 3 * i + 3, :3] = np.eye(3)
+        D[3 * i : 3 * i + 3, 3:] = -skew_np(r[i])
+    P = np.eye(3 * N) - D @ np.linalg.pinv(D)
+    y = acc - np.einsum("nab,kb->nka", W, r)
+    return (y.reshape(len(y), -1) @ P.T).reshape(y.shape)
+
+
+def _array_fit(acc, r, w_gyro, dt, sigma_gyro, fit_bias: bool, n_blocks=20, max_rows=40_000):
+    """Fit sensor position corrections (and optionally gyro biases) to the rigid-body array model."""
+    n = acc.shape[0]
+    k_s = max(1, int(round(0.005 / dt)) | 1)
+    stride = max(1, n // max_rows)
+    wbar = _moving_average(w_gyro, k_s)[::stride]
+    A = acc[::stride]
+    ns = A.shape[0]
+    N = r.shape[0]
+    s2 = sigma_gyro**2 / k_s  # residual noise variance per axis after smoothing
+    corr = np.diag([s2[1] + s2[2], s2[0] + s2[2], s2[0] + s2[1]])
+
+    def resid(theta):
+        dpos = theta[: 3 * N].reshape(N, 3)
+        b = theta[3 * N :] if fit_bias else np.zeros(3)
+        om = wbar - b
+        Wm = skew_np(om) @ skew_np(om) + corr
+        return _array_residual(A, r + dpos, Wm).reshape(ns, -1)
+
+    p = 3 * N + (3 if fit_bias else 0)
+    theta = np.zeros(p)
+    for it in range(4):
+        r0 = resid(theta)
+        J = np.empty((r0.size, p))
+        for j in range(p):
+            h = 1e-6 if j < 3 * N else 1e-7
+            tp = theta.copy()
+            tp[j] += h
+            J[:, j] = (resid(tp) - r0).reshape(-1) / h
+        step = -np.linalg.lstsq(J, r0.reshape(-1), rcond=1e-10)[0]
+        theta = theta + step
+        if np.max(np.abs(step)) < 1e-10:
+            break
+    r0 = resid(theta)
+    J3 = J.reshape(ns, -1, p)
+    H = J.T @ J
+    Hi = np.linalg.pinv(H, rcond=1e-10)
+    blocks = np.array_split(np.arange(ns), n_blocks)
+    gs = np.stack([np.einsum("nkp,nk->p", J3[bk], r0[bk]) for bk in blocks])
+    meat = gs.T @ gs
+    cov = Hi @ meat @ Hi * n_blocks / (n_blocks - 1)
+    return {"theta": theta, "cov": cov, "resid": r0.reshape(ns, N, 3), "blocks": blocks, "k_s": k_s, "stride": stride,
+            "wbar": wbar, "corr": corr, "A": A}
+
+
+def _rigidity_rms(resid, N, blocks):
+    dof = 3 * N - 6
+    e = np.sum(resid**2, axis=(1, 2)) / dof
+    per_block = np.array([e[b].mean() for b in blocks])
+    m = per_block.mean()
+    se = per_block.std(ddof=1) / np.sqrt(len(blocks))
+    return m, se, len(blocks)
+
+
+# --------------------------------------------------------------------------- Allan
+
+
+def _allan(series, dt):
+    """Overlapping Allan deviation per axis (allantools) and a fit of N, B, K (IEEE 952)."""
+    import allantools
+
+    out = {"taus": None, "adev": [], "fit": None}
+    n = series.shape[0]
+    taus_all = None
+    for c in range(series.shape[1]):
+        taus, adev, _, _ = allantools.oadev(series[:, c], rate=1.0 / dt, data_type="freq", taus="octave")[:4]
+        keep = taus <= n * dt / 9.0  # enough averages for a stable estimate
+        taus_all = taus[keep]
+        out["adev"].append(adev[keep])
+    out["taus"] = taus_all
+    av = np.mean(np.square(out["adev"]), axis=0)  # axis-averaged Allan variance
+    # sigma^2(tau) = N^2 / tau + (0.664 B)^2 + K^2 tau / 3, fitted with relative weights (NNLS)
+    from scipy.optimize import nnls
+
+    X = np.stack([1.0 / taus_all, np.full_like(taus_all, 0.664**2), taus_all / 3.0], 1)
+    wgt = 1.0 / np.maximum(av, 1e-300)
+    coef, _ = nnls(X * wgt[:, None], av * wgt)
+    N_, B_, K_ = np.sqrt(coef)
+    out["fit"] = {"N": float(N_), "B": float(B_), "K": float(K_)}
+    return out
+
+
+# --------------------------------------------------------------------------- main
+
+
+def _finding(cause, estimate, unit, interval, evidence, z, **extra):
+    f = {"cause": cause}
+    f.update(extra)
+    f.update({"estimate": estimate, "unit": unit, "interval": interval, "evidence": evidence})
+    return f, z
+
+
+def _fmt(x):
+    return f"{x:.3g}"
+
+
+def run_attitude_diagnosis(run_path: str, sensors_path: str | None = None, plots_dir: str | None = None) -> dict:
+    """Diagnose an attitude run (docs/measured-data.md); return the report dict (kind "attitude").
+
+    Raises :class:`jaxdrift.cli.UsageError` on bad input before anything is written. With
+    ``plots_dir``, writes ``allan.png`` (and ``attitude_error.png``, ``array_residual.png`` where the
+    run has what they need) after the analysis succeeded.
+    """
+    run = read_attitude_run(run_path)
+    positions = None
+    if run["acc"] is not None:
+        if sensors_path is None:
+            raise _usage_error(f"{run_path}: the run has accelerometer columns; give their positions with --sensors SENSORS.json")
+        positions = read_sensors(sensors_path, run["acc"].shape[1])
+    elif sensors_path is not None:
+        raise _usage_error(f"{sensors_path}: sensor positions given but {run_path} has no accelerometer columns (a1x, a1y, a1z, ...)")
+    report, plots = diagnose_attitude(run, positions)
+    if plots_dir is not None:
+        os.makedirs(plots_dir, exist_ok=True)
+        report["plots"] = _write_plots(plots, plots_dir)
+    return report
+
+
+def diagnose_attitude(run, positions=None):
+    """The analysis behind :func:`run_attitude_diagnosis` on an already validated run dict."""
+    t, dt, w = run["t"], run["dt"], run["w"]
+    n = len(t)
+    T = t[-1] - t[0]
+    q_ref = run["q_ref"]
+    notes = []
+    observed = []
+    not_observed = []
+    findings = []  # (finding, z)
+    plots = {}
+    if run.get("extra_columns"):
+        print(f"jaxdrift diagnose: warning: ignoring column(s) {', '.join(run['extra_columns'])}", file=sys.stderr)
+
+    # ---- gyro noise
+    wn = estimate_white_noise(w, dt)
+    var_pooled = float(np.mean(wn["var"]))
+    var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
+    floor = max(3.0 * run["quantisation"], 1e-9 * float(np.sqrt(np.mean(w**2))), 1e-15)
+    noise_found = wn["plateau"] and math.sqrt(var_pooled) > floor
+    sigma_axis = wn["sigma"] if noise_found else np.zeros(3)
+    N_hat = math.sqrt(var_pooled * dt) if noise_found else 0.0
+    noise_var_rate = max(var_pooled * dt, (floor**2) * dt, 1e-24)  # N^2 for weights
+    if noise_found:
+        z95 = stats.norm.ppf(0.975)
+        lo = math.sqrt(max(var_pooled - z95 * var_se, 0.0) * dt)
+        hi = math.sqrt((var_pooled + z95 * var_se) * dt)
+        noise_finding = {
+            "cause": "gyro_noise", "estimate": N_hat, "unit": "rad/sqrt(s)", "interval": [lo, hi],
+            "evidence": (
+                f"order-{wn['order']} differences of the rates are white with per-sample std "
+                f"{', '.join(_fmt(s) for s in sigma_axis)} rad/s (wx, wy, wz) at dt={_fmt(dt)} s; "
+                f"N = sigma sqrt(dt) = {_fmt(N_hat)} rad/sqrt(s) = {_fmt(np.degrees(N_hat) * 60)} deg/sqrt(h)"
+            ),
+        }
+    else:
+        noise_finding = None
+        notes.append(
+            "no white gyro noise above the rounding of the file"
+            if wn["plateau"] else "rate differences never became white: noise not separable from the motion"
+        )
+
+    corrections = {c: {"bias": 0.0, "scale": 1.0} for c in CHANNELS}
+    bias_path = np.zeros((n, 3))
+    scale = np.ones(3)
+    bias_source = None
+    allan_series, allan_label = None, None
+    sim_err = {}
+    gain = None
+
+    # ---- reference attitude
+    n_ref = 0 if q_ref is None else int(np.sum(np.isfinite(q_ref[:, 0])))
+    if n_ref >= 2:
+        ref_rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
+        max_int = 3000
+        if len(ref_rows) > max_int + 1:
+            pick = np.unique(np.round(np.linspace(0, len(ref_rows) - 1, max_int + 1)).astype(int))
+            anchors = ref_rows[pick]
+        else:
+            anchors = ref_rows
+        n_int = len(anchors) - 1
+        T_ref = (anchors[-1] - anchors[0]) * dt
+        M = int(np.clip(min(n_int // 10, T_ref / 5.0), 1, 16))
+        int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
+        fit0 = _reference_fit(run, noise_var_rate, [int_seg] * 3, anchors, sigma_axis**2)
+        infl = max(1.0, fit0["chi2"] / fit0["dof"])
+        bias_source = "reference"
+        observed.append(f"reference attitude on {n_ref} rows ({n_int} intervals used)")
+        drift = {}
+        if M >= 4:
+            bounds_rows = np.concatenate([anchors[:-1][np.searchsorted(int_seg, np.arange(M))], [anchors[-1]]])
+            bounds = (bounds_rows - 0) * dt  # time since the first row
+            S_rw = _rw_cov(bounds)
+            for c in range(3):
+                sl = slice(fit0["offs"][c], fit0["offs"][c + 1])
+                b = fit0["theta"][sl]
+                V = fit0["cov"][sl, sl] * infl
+                d = _reml_drift(b, V, S_rw)
+                if d["lr"] > DRIFT_LR and d["K"] > 0:
+                    drift[c] = d
+        else:
+            not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
+        seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
+        fit = _reference_fit(run, noise_var_rate, seg_final, anchors, sigma_axis**2)
+        infl = max(1.0, fit["chi2"] / fit["dof"])
+        cov = fit["cov"] * infl
+        th = fit["theta"]
+        offs = fit["offs"]
+        z95 = stats.norm.ppf(0.975)
+        sc_idx = offs[-1]
+        rows_int = np.clip(np.searchsorted(anchors, np.arange(n), side="right") - 1, 0, n_int - 1)
+        for c in range(3):
+            ch = CHANNELS[c]
+            s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
+            scale[c] = s_hat
+            if s_se > 0.05:
+                not_observed.append(f"scale of {ch} (too little rotation about it: SE {_fmt(s_se)})")
+                scale[c] = 1.0
+            elif abs(s_hat - 1) / max(s_se, 1e-300) > Z_SIGNIFICANT:
+                findings.append(_finding(
+                    "gyro_scale", float(s_hat), "ratio", [float(s_hat - z95 * s_se), float(s_hat + z95 * s_se)],
+                    f"rotation about {ch} between reference rows is {_fmt(s_hat)} times the gyro's "
+                    f"(z = {_fmt(abs(s_hat - 1) / s_se)})",
+                    abs(s_hat - 1) / s_se, channel=ch))
+            corrections[ch]["scale"] = float(scale[c])
+            sl = slice(offs[c], offs[c + 1])
+            if c in drift:
+                d = drift[c]
+                b0, b0_se = d["beta"], math.sqrt(d["beta_var"])
+                findings.append(_finding(
+                    "gyro_bias_drift", d["K"], "rad/s/sqrt(s)", [float(v) for v in d["interval"]],
+                    f"the {ch} bias over {M} segments wanders like a random walk (REML likelihood ratio "
+                    f"{_fmt(d['lr'])} against a constant bias)",
+                    math.sqrt(max(d["lr"], 0.0)), channel=ch))
+                bias_path[:, c] = th[sl][seg_final[c][rows_int]]
+                b_est = b0
+            else:
+                b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
+                bias_path[:, c] = b0
+                b_est = b0
+            if abs(b0) / max(b0_se, 1e-300) > Z_SIGNIFICANT:
+                findings.append(_finding(
+                    "gyro_bias", float(b0), "rad/s", [float(b0 - z95 * b0_se), float(b0 + z95 * b0_se)],
+                    f"integrated {ch} departs from the reference like a constant rate error of {_fmt(b0)} rad/s "
+                    f"(z = {_fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
+                    abs(b0) / b0_se, channel=ch))
+            corrections[ch]["bias"] = float(b_est)
+        if infl > 1.5:
+            notes.append(f"reference residuals are {_fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
+        # simulation error and gain: integrate from the first reference row
+        a0 = ref_rows[0]
+        ok = ref_rows
+        q0 = q_ref[a0]
+
+        def err_of(rates):
+            qi = integrate_rates_np(q0, rates[a0:], dt)
+            return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
+
+        e_before = err_of(w)
+        w_corr = (w - bias_path) / scale
+        e_after = err_of(w_corr)
+        thr = np.radians(DRIFT_OFF_DEG)
+        off = np.nonzero(e_before > thr)[0]
+        sim_err["attitude"] = {
+            "rms": float(np.sqrt(np.mean(e_before**2))), "max_abs": float(np.max(e_before)),
+            "drift_off_time_s": float(t[ok[off[0]]] - t[a0]) if len(off) else None,
+            "threshold_rad": float(thr), "unit": "rad",
+            "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row) and the reference",
+        }
+        gain = {"metric": "attitude_error_rms", "before": sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
+        plots["attitude"] = (t[ok], e_before, e_after)
+        # error series for Allan: per-sample rate error against the reference (dense reference only)
+        if n_ref >= 0.9 * n and n > 1000:
+            dq = quat_multiply_np(quat_conjugate_np(q_ref[:-1]), q_ref[1:])
+            w_ref = quat_log_np(dq) / dt
+            good = np.isfinite(w_ref).all(1)
+            allan_series = (w[:-1] - scale * w_ref)[good]
+            allan_label = "gyro minus reference-derived rate"
+    else:
+        if n_ref == 1:
+            notes.append("one reference row only: used as the initial attitude, no bias information")
+        not_observed.append("attitude departure (no reference attitude over more than one row)")
+        st = _static_segment(w, dt, wn["sigma"] if noise_found else np.zeros(3))
+        if st is not None:
+            bias_source = "static"
+            i0, i1 = st["rows"]
+            observed.append(f"static segment t = {_fmt(t[i0])}..{_fmt(t[i1 - 1])} s (assumed at rest, true rate 0)")
+            z95 = stats.norm.ppf(0.975)
+            for c in range(3):
+                ch = CHANNELS[c]
+                b = float(st["mean"][c])
+                se = math.sqrt(max(wn["var"][c], floor**2) / st["n"])
+                corrections[ch]["bias"] = b
+                bias_path[:, c] = b
+                if abs(b) / se > Z_SIGNIFICANT:
+                    findings.append(_finding(
+                        "gyro_bias", b, "rad/s", [b - z95 * se, b + z95 * se],
+                        f"{ch} reads {_fmt(b)} rad/s on average while standing still ({_fmt((i1 - i0) * dt)} s, z = {_fmt(abs(b) / se)})",
+                        abs(b) / se, channel=ch))
+            allan_series, allan_label = st["data"], "rates in the static segment"
+            not_observed.append("gyro scale (needs a reference attitude)")
+            not_observed.append("gyro bias drift (needs a reference attitude)")
+            sim_err["static_rate"] = {"rms": float(np.sqrt(np.mean(st["mean"] ** 2))), "unit": "rad/s"}
+            gain = {"metric": "static_mean_rate_rms", "before": float(np.sqrt(np.mean(st["mean"] ** 2))), "after": 0.0, "unit": "rad/s"}
+
+    # ---- accelerometer array
+    if positions is not None:
+        acc = run["acc"]
+        N = positions.shape[0]
+        fit_bias = bias_source is None
+        w_use = (w - bias_path) / scale
+        af = _array_fit(acc, positions, w_use, dt, sigma_axis, fit_bias=fit_bias)
+        observed.append(f"accelerometer array of {N} sensors (rigid-body residual, sensor positions)")
+        th, cov = af["theta"], af["cov"]
+        nb = len(af["blocks"])
+        tq = stats.t.ppf(0.975, nb - 1)
+        dpos = th[: 3 * N].reshape(N, 3)
+        excluded = []
+        for _ in range(N - 3):
+            best = None
+            for j in range(N):
+                if j in excluded:
+                    continue
+                others = [i for i in range(N) if i != j and i not in excluded]
+                L = np.zeros((3, len(th)))
+                L[:, 3 * j : 3 * j + 3] = np.eye(3)
+                for i in others:
+                    L[:, 3 * i : 3 * i + 3] -= np.eye(3) / len(others)
+                dj = L @ th
+                Cj = L @ cov @ L.T
+                chi2 = float(dj @ np.linalg.solve(Cj + 1e-300 * np.eye(3), dj))
+                if best is None or chi2 > best[0]:
+                    best = (chi2, j, dj, np.sqrt(np.diag(Cj)))
+            if best is None or best[0] < POSITION_CHI2:
+                break
+            chi2, j, dj, se = best
+            excluded.append(j)
+            findings.append(_finding(
+                "sensor_position", [float(v) for v in dj], "m", [[float(v) for v in dj - tq * se], [float(v) for v in dj + tq * se]],
+                f"the accelerations of sensor {j + 1} fit the rigid-body motion seen by the gyro best with its position "
+                f"moved by [{', '.join(_fmt(v) for v in dj)}] m relative to the others (chi-square {_fmt(chi2)}, 3 dof)",
+                math.sqrt(chi2), sensor=j + 1))
+        pos_corr = np.zeros((N, 3))
+        for j in excluded:
+            others = [i for i in range(N) if i not in excluded]
+            pos_corr[j] = dpos[j] - dpos[others].mean(0)
+        for j in range(N):
+            corrections[f"sensor{j + 1}"] = {"position": [float(v) for v in pos_corr[j]]}
+        if fit_bias:
+            z95 = stats.norm.ppf(0.975)
+            for c in range(3):
+                ch = CHANNELS[c]
+                b = float(th[3 * N + c])
+                se = math.sqrt(max(cov[3 * N + c, 3 * N + c], 0.0))
+                if se > 0 and abs(b) / se > Z_SIGNIFICANT:
+                    findings.append(_finding(
+                        "gyro_bias", b, "rad/s", [b - tq * se, b + tq * se],
+                        f"the array's centripetal accelerations (M+ = omega~ omega~) match the gyro's {ch} only after "
+                        f"removing {_fmt(b)} rad/s (z = {_fmt(abs(b) / se)})",
+                        abs(b) / se, channel=ch))
+                    corrections[ch]["bias"] = b
+                    bias_path[:, c] = b
+            bias_source = "array"
+            observed.append("gyro biases through the array's centripetal terms")
+        # rigidity residual before (given positions) and after the corrections
+        resid_after = af["resid"]
+        m2, se2, nb2 = _rigidity_rms(resid_after, N, af["blocks"])
+        Wm0 = skew_np(af["wbar"]) @ skew_np(af["wbar"]) + af["corr"]
+        resid_before = _array_residual(af["A"], positions, Wm0)
+        m2b, _, _ = _rigidity_rms(resid_before, N, af["blocks"])
+        # the part of the residual that the gyro noise alone explains (W from noisy rates)
+        rng = np.random.default_rng(0)
+        eps = rng.normal(size=af["wbar"].shape) * (sigma_axis / math.sqrt(af["k_s"]))
+        om = af["wbar"]
+        dW = skew_np(om + eps) @ skew_np(om + eps) - skew_np(om) @ skew_np(om)
+        r_fit = positions + pos_corr
+        gn = _array_residual(np.einsum("nab,kb->nka", dW, r_fit), r_fit, np.zeros_like(dW))
+        m_gn, _, _ = _rigidity_rms(gn, N, af["blocks"])
+        nr2 = max(m2 - m_gn, 0.0)
+        nr = math.sqrt(nr2)
+        sim_err["rigidity_residual"] = {"rms": float(math.sqrt(m2b)), "unit": "m/s^2",
+                                        "what": "RMS per residual degree of freedom of the rigid-body fit of the array with the given positions"}
+        if nr > NONRIGID_FLOOR and nr2 > 5.0 * se2:
+            tq2 = stats.t.ppf(0.975, nb2 - 1)
+            lo = math.sqrt(max(nr2 - tq2 * se2, 0.0))
+            hi = math.sqrt(nr2 + tq2 * se2)
+            # a relative allowance for the degrees-of-freedom correction (isotropy assumption)
+            findings.append(_finding(
+                "nonrigid", nr, "m/s^2", [lo, hi],
+                f"the array's accelerations depart from the best rigid-body motion by {_fmt(nr)} m/s^2 RMS per "
+                f"degree of freedom (gyro noise accounts for {_fmt(math.sqrt(m_gn))})",
+                nr2 / max(se2, 1e-300), ))
+        if gain is None:
+            gain = {"metric": "rigidity_residual_rms", "before": float(math.sqrt(m2b)), "after": float(math.sqrt(m2)), "unit": "m/s^2"}
+        plots["array"] = (t[:: af["stride"]], np.sqrt(np.sum(resid_before**2, axis=(1, 2)) / (3 * N - 6)),
+                          np.sqrt(np.sum(resid_after**2, axis=(1, 2)) / (3 * N - 6)))
+    else:
+        not_observed.append("sensor positions and rigidity (no accelerometer array)")
+
+    if bias_source is None:
+        not_observed.append("gyro bias (no reference attitude, no static segment, no accelerometer array)")
+        not_observed.append("gyro scale and bias drift (need a reference attitude)")
+
+    # ---- Allan deviation
+    if allan_series is None:
+        allan_series, allan_label = w - bias_path, "measured rates (the motion dominates at long tau)"
+    allan = None
+    if allan_series.shape[0] >= 64:
+        allan = _allan(allan_series, dt)
+        allan["series"] = allan_label
+        plots["allan"] = allan
+        if noise_finding is not None:
+            noise_finding["evidence"] += f"; Allan deviation of the {allan_label} gives N = {_fmt(allan['fit']['N'])}"
+
+    # ---- ranking
+    findings.sort(key=lambda fz: -fz[1])
+    ranked = [f for f, _ in findings]
+    if noise_finding is not None:
+        ranked.append(noise_finding)
+    if not ranked:
+        ranked = [{"cause": "none", "estimate": None, "unit": None, "interval": None,
+                   "evidence": "no systematic effect and no white noise above the file's rounding"}]
+    report = {
+        "schema": SCHEMA,
+        "kind": "attitude",
+        "simulation_error": sim_err,
+        "findings": ranked,
+        "extended_model": {"corrections": corrections},
+        "gain": gain if gain is not None else {"metric": None, "before": None, "after": None},
+        "observability": {"used": observed, "not_observed": not_observed, "notes": notes},
+        "allan": None if allan is None else {
+            "series": allan["series"], "N": allan["fit"]["N"], "B": allan["fit"]["B"], "K": allan["fit"]["K"],
+            "units": {"N": "rad/sqrt(s)", "B": "rad/s", "K": "rad/s/sqrt(s)"},
+        },
+        "run": {"rows": int(n), "dt": float(dt), "duration_s": float(T), "reference_rows": n_ref,
+                "sensors": 0 if positions is None else int(positions.shape[0])},
+    }
+    return report, plots
+
+
+def _write_plots(plots, out):
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+
+    written = []
+    if "allan" in plots:
+        a = plots["allan"]
+        fig, ax = plt.subplots(figsize=(6, 4.5))
+        for c, ad in enumerate(a["adev"]):
+            ax.loglog(a["taus"], ad, "o-", ms=3, label=CHANNELS[c])
+        f = a["fit"]
+        tt = a["taus"]
+        if f["N"] > 0:
+            ax.loglog(tt, f["N"] / np.sqrt(tt), "k--", lw=1, label=f"N = {f['N']:.3g} rad/sqrt(s) (slope -1/2)")
+        if f["B"] > 0:
+            ax.loglog(tt, np.full_like(tt, 0.664 * f["B"]), "k:", lw=1, label=f"B = {f['B']:.3g} rad/s (flat)")
+        if f["K"] > 0:
+            ax.loglog(tt, f["K"] * np.sqrt(tt / 3.0), "k-.", lw=1, label=f"K = {f['K']:.3g} rad/s/sqrt(s) (slope +1/2)")
+        ax.set_xlabel("tau [s]")
+        ax.set_ylabel("Allan deviation [rad/s]")
+        ax.set_title(f"Allan deviation: {a['series']}", fontsize=9)
+        ax.legend(fontsize=7)
+        ax.grid(True, which="both", alpha=0.3)
+        p = os.path.join(out, "allan.png")
+        fig.tight_layout()
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(p)
+    if "attitude" in plots:
+        tt, eb, ea = plots["attitude"]
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        ax.plot(tt - tt[0], np.degrees(eb), label="gyro as measured")
+        ax.plot(tt - tt[0], np.degrees(ea), label="after corrections")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("attitude error [deg]")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        p = os.path.join(out, "attitude_error.png")
+        fig.tight_layout()
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(p)
+    if "array" in plots:
+        tt, rb, ra = plots["array"]
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        ax.plot(tt - tt[0], rb, lw=0.5, label="given positions")
+        ax.plot(tt - tt[0], ra, lw=0.5, label="corrected positions")
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel("rigidity residual [m/s^2]")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        p = os.path.join(out, "array_residual.png")
+        fig.tight_layout()
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(p)
+    return written
