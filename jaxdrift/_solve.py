@@ -181,13 +181,18 @@ def _select_initial_step(f, t0, y0, f0, t1, args, rtol, atol, error_order):
 
 
 def _save_pending(ts, idx, out, t, t_new, y, q, h, max_per_step):
-    """Write dense output for every save time in (t, t_new] (and t0 on the first step)."""
+    """Write dense output for every save time in (t, t_new] (and t0 on the first step).
+
+    ``q`` is the (n_poly, n) array of dense-output coefficients or a zero-argument callable that
+    forms it (so that steps without a save never pay for it).
+    """
     n_save = ts.shape[0]
 
     def save_one(idx, out):
+        q_ = q() if callable(q) else q
         tsave = ts[jnp.minimum(idx, n_save - 1)]
         theta = jnp.where(h > 0, (tsave - t) / h, 0.0)
-        val = _dense_eval(y, q, theta)
+        val = _dense_eval(y, q_, theta)
         take = (idx < n_save) & (tsave <= t_new)
         out = jnp.where(take, out.at[jnp.minimum(idx, n_save - 1)].set(val), out)
         return idx + take.astype(idx.dtype), out
@@ -245,6 +250,8 @@ def solve_ode(
         y0 = y0.astype(jnp.result_type(float))
     _check_args(y0, t0, t1, saveat, rtol, atol, dt, dt0, max_steps, method)
     dtype = y0.dtype
+    t0_concrete, t1_concrete = _concrete(t0), _concrete(t1)
+    ts_concrete = _concrete(saveat)
     ts = jnp.asarray(saveat, dtype=dtype)
     t0 = jnp.asarray(t0, dtype=dtype)
     t1 = jnp.asarray(t1, dtype=dtype)
@@ -255,26 +262,24 @@ def solve_ode(
     f0 = f0.astype(dtype)
     out0 = jnp.zeros((ts.shape[0],) + y0.shape, dtype)
     if dt is not None:
-        return _solve_fixed(f, y0, f0, t0, t1, ts, out0, args, method, dt)
+        return _solve_fixed(f, y0, f0, t0, t1, t0_concrete, t1_concrete, ts, ts_concrete, out0, args, method, dt)
     controller = controller or StepController()
     return _solve_adaptive(f, y0, f0, t0, t1, ts, out0, args, rtol, atol, dt0, max_steps, controller)
 
 
-def _max_saves_per_step(ts, step):
-    """1 if no step of length ``step`` can contain two save times (decided on concrete values)."""
-    tsc = _concrete(ts)
-    stepc = _concrete(step) if step is not None else None
+def _max_saves_per_step(tsc, stepc):
+    """1 if no step of length ``stepc`` can contain two save times ``tsc`` (concrete values or None)."""
     if tsc is None or stepc is None or tsc.size < 2:
         return 1 if (tsc is not None and tsc.size < 2) else None
     return 1 if np.min(np.diff(tsc)) > stepc * (1 + 1e-9) else None
 
 
-def _solve_fixed(f, y0, f0, t0, t1, ts, out0, args, method, dt):
-    dtc, t0c, t1c = _concrete(dt), _concrete(t0), _concrete(t1)
+def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, method, dt):
+    dtc = _concrete(dt)
     if dtc is None or t0c is None or t1c is None:
         raise ValueError("fixed-step mode needs concrete t0, t1 and dt (they fix the number of steps)")
     n_steps = int(np.ceil((t1c - t0c) / dtc * (1 - 1e-12)))
-    per_step = _max_saves_per_step(ts, dtc)
+    per_step = _max_saves_per_step(ts_concrete, dtc)
     tab = DOPRI5
     dt = jnp.asarray(dtc, y0.dtype)
 
@@ -286,14 +291,20 @@ def _solve_fixed(f, y0, f0, t0, t1, ts, out0, args, method, dt):
         h = t_new - t
         if method == "euler":
             y_new = y + h * k0
-            q = (h * k0)[None]
+            ks = None
         else:
             ks, y_new = _stages(tab, f, t, y, k0, h, args)
         k_new = f(t_new, y_new, args)
-        if method != "euler":
-            q = _dense_coeffs(tab, ks + [k_new], h)
         t_last = jnp.where(i == n_steps - 1, t1, t_new)
-        idx, out = _save_pending(ts, idx, out, t, t_last, y, q, h, per_step or 0)
+
+        def do_save(idx, out):
+            q = (h * k0)[None] if method == "euler" else _dense_coeffs(tab, ks + [k_new], h)
+            return _save_pending(ts, idx, out, t, t_last, y, q, h, per_step or 0)
+
+        # The grid and the save times are the same for every path, so under vmap this stays a
+        # real branch: the dense-output coefficients are only formed on steps that save.
+        pending = ts[jnp.minimum(idx, ts.shape[0] - 1)] <= t_last
+        idx, out = jax.lax.cond(pending & (idx < ts.shape[0]), do_save, lambda i_, o_: (i_, o_), idx, out)
         return (t_new, y_new, k_new, idx, out), None
 
     init = (t0, y0, f0, jnp.asarray(0, jnp.int32), out0)
@@ -356,10 +367,11 @@ def _solve_adaptive(f, y0, f0, t0, t1, ts, out0, args, rtol, atol, dt0, max_step
         fac_rej = jnp.where(finite, jnp.maximum(ctrl.min_factor, fac), ctrl.min_factor)
         new_h_abs = h_abs * jnp.where(accept, fac_acc, fac_rej)
 
-        q = _dense_coeffs(tab, ks, h)
+        # Under vmap the branch is a select and the save loop runs while any path has a save
+        # pending; the dense coefficients are formed inside it, so steps without saves skip them.
         idx, out = jax.lax.cond(
             accept,
-            lambda: _save_pending(ts, s.idx, s.out, s.t, t_new, s.y, q, h, None),
+            lambda: _save_pending(ts, s.idx, s.out, s.t, t_new, s.y, lambda: _dense_coeffs(tab, ks, h), h, None),
             lambda: (s.idx, s.out),
         )
         n_acc = s.n_acc + accept.astype(jnp.int32)

@@ -13,7 +13,6 @@ import sys
 
 # (module, help) for each subcommand; a module provides add_parser(subparsers).
 _SUBCOMMANDS = [
-    "jaxdrift._cli_study",
     "jaxdrift._cli_paper",
     "jaxdrift._cli_diagnose",
     "jaxdrift._cli_attitude",
