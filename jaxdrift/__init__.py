@@ -15,6 +15,7 @@ from ._tableau import DOPRI5, ButcherTableau
 
 # --- noise and Monte-Carlo runner (#2) ---
 from ._noise import apply_input_effects, path_normals, remove_input_effects, white_noise
+from ._montecarlo import MCResult, monte_carlo
 
 # --- models and paper study (#3) ---
 from ._halfcar import (
