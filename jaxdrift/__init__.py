@@ -39,6 +39,20 @@ from ._params import (
 )
 
 # --- variance (#4) ---
+from ._fast import solve_fixed_fast
+from ._variance import (
+    CovarianceResult,
+    brownian_intensity,
+    halfcar_free_mode_covariance,
+    halfcar_free_modes,
+    point_mass_covariance,
+    point_mass_variance,
+    propagate_covariance,
+    quaternion_angle_variance,
+    quaternion_norm_growth,
+    quaternion_norm_sq_euler,
+    variance_interval,
+)
 
 # --- diagnosis (#5) ---
 
