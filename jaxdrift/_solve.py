@@ -14,6 +14,7 @@ from typing import Any
 
 import equinox as eqx
 import jax
+from jax.custom_batching import custom_vmap
 import jax.numpy as jnp
 import numpy as np
 
@@ -314,102 +315,147 @@ def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, metho
 
 
 def _solve_adaptive(f, y0, f0, t0, t1, ts, out0, args, rtol, atol, dt0, max_steps, ctrl):
-    tab = DOPRI5
     dtype = y0.dtype
     rtol = jnp.asarray(rtol, dtype)
     atol = jnp.asarray(atol, dtype)
     if dt0 is None:
-        h_abs = _select_initial_step(f, t0, y0, f0, t1, args, rtol, atol, tab.error_order)
+        h0 = _select_initial_step(f, t0, y0, f0, t1, args, rtol, atol, DOPRI5.error_order)
     else:
-        h_abs = jnp.asarray(dt0, dtype)
-    err_exp = ctrl.beta1
+        h0 = jnp.asarray(dt0, dtype)
+    # Closed-over arrays (possibly batch tracers of an enclosing vmap) become explicit arguments,
+    # so that the batching rule below sees which inputs are batched.
+    f_conv, consts = jax.closure_convert(f, t0, y0, args)
+    consts = tuple(consts)
+
+    @custom_vmap
+    def core(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts):
+        fb = jax.vmap(lambda t, y: f_conv(t, y, args, *consts))
+        sol = _adaptive_loop(fb, y0[None], f0[None], t0[None], t1[None], ts[None], rtol, atol, h0[None],
+                             max_steps, ctrl)
+        return jax.tree.map(lambda x: x[0], sol)
+
+    @core.def_vmap
+    def core_batched(axis_size, in_batched, y0, f0, t0, t1, ts, args, rtol, atol, h0, consts):
+        # Under vmap, a while_loop with a batched predicate selects its whole carry (including the
+        # saved outputs) on every iteration. Here the batch is explicit instead: one loop over all
+        # paths, per-path masking of the small state only, saves written by a row scatter.
+        b_y0, b_f0, b_t0, b_t1, b_ts, b_args, b_rtol, b_atol, b_h0, b_consts = in_batched
+
+        def bc(x, batched, tail):
+            return x if batched else jnp.broadcast_to(x, (axis_size,) + tail)
+
+        in_axes_args = jax.tree.map(lambda b: 0 if b else None, b_args)
+        in_axes_consts = tuple(0 if b else None for b in b_consts)
+        fb = jax.vmap(lambda t, y, a, *c: f_conv(t, y, a, *c), in_axes=(0, 0, in_axes_args) + in_axes_consts)
+        n = y0.shape[-1]
+        rt = rtol if b_rtol else jnp.broadcast_to(rtol, (axis_size,) + jnp.shape(rtol))
+        at = atol if b_atol else jnp.broadcast_to(atol, (axis_size,) + jnp.shape(atol))
+        rt = rt.reshape(axis_size, -1)
+        at = at.reshape(axis_size, -1)
+        sol = _adaptive_loop(
+            lambda t, y: fb(t, y, args, *consts),
+            bc(y0, b_y0, (n,)), bc(f0, b_f0, (n,)), bc(t0, b_t0, ()), bc(t1, b_t1, ()),
+            bc(ts, b_ts, ts.shape[-1:]), rt, at, bc(h0, b_h0, ()), max_steps, ctrl,
+        )
+        return sol, jax.tree.map(lambda _: True, sol)
+
+    return core(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts)
+
+
+def _adaptive_loop(fb, y0, f0, t0, t1, ts, rtol, atol, h0, max_steps, ctrl):
+    """The adaptive DOPRI5 loop over an explicit batch: y0 (B, n), t0/t1/h0 (B,), ts (B, n_save).
+
+    ``fb(t (B,), y (B, n)) -> (B, n)``. rtol/atol broadcast against (B, n).
+    """
+    tab = DOPRI5
+    dtype = y0.dtype
+    B, n = y0.shape
+    n_save = ts.shape[-1]
     e = tab.b_error
+    rows = jnp.arange(B)
 
-    class State(eqx.Module):
-        t: jax.Array
-        y: jax.Array
-        k0: jax.Array
-        h_abs: jax.Array
-        rejected: jax.Array  # a rejection happened within the current step
-        err_prev: jax.Array
-        idx: jax.Array
-        out: jax.Array
-        n_acc: jax.Array
-        n_rej: jax.Array
-        result: jax.Array
+    def rk_step(t, y, k0, h):
+        ks = [k0]
+        for i in range(1, len(tab.c)):
+            dy = sum(float(tab.a[i, j]) * ks[j] for j in range(i) if tab.a[i, j] != 0.0)
+            ks.append(fb(t + float(tab.c[i]) * h, y + h[:, None] * dy))
+        y_new = y + h[:, None] * sum(float(tab.b[j]) * ks[j] for j in range(len(ks)) if tab.b[j] != 0.0)
+        return ks, y_new
 
-    def cond(s):
-        return (s.t < t1) & (s.result == Result.SUCCESS)
+    def cond(c):
+        t, y, k0, h_abs, rejected, err_prev, idx, out, n_acc, n_rej, result = c
+        return jnp.any((t < t1) & (result == Result.SUCCESS))
 
-    def body(s):
+    def body(c):
+        t, y, k0, h_abs, rejected, err_prev, idx, out, n_acc, n_rej, result = c
+        active = (t < t1) & (result == Result.SUCCESS)
         # scipy: min_step = 10 * spacing(t); the step is first raised to it, then tested.
-        min_step = 10 * jnp.abs(jnp.nextafter(s.t, jnp.asarray(jnp.inf, dtype)) - s.t)
-        h_abs = jnp.maximum(s.h_abs, min_step)
-        underflow = s.h_abs < min_step * (1 - 1e-15)
-        # The step of the attempt (clipped to t1).
-        t_new = jnp.minimum(s.t + h_abs, t1)
-        h = t_new - s.t
-        ks, y_new = _stages(tab, f, s.t, s.y, s.k0, h, args)
-        k_new = f(t_new, y_new, args)
+        min_step = 10 * jnp.abs(jnp.nextafter(t, jnp.asarray(jnp.inf, dtype)) - t)
+        underflow = active & (h_abs < min_step * (1 - 1e-15))
+        h_try = jnp.maximum(h_abs, min_step)
+        t_new = jnp.minimum(t + h_try, t1)
+        h = t_new - t
+        ks, y_new = rk_step(t, y, k0, h)
+        k_new = fb(t_new, y_new)
         ks = ks + [k_new]
-        err = h * sum(float(e[i]) * ks[i] for i in range(len(ks)) if e[i] != 0.0)
-        scale = atol + jnp.maximum(jnp.abs(s.y), jnp.abs(y_new)) * rtol
-        err_norm = _rms(err / scale)
+        err = h[:, None] * sum(float(e[i]) * ks[i] for i in range(len(ks)) if e[i] != 0.0)
+        scale = atol + jnp.maximum(jnp.abs(y), jnp.abs(y_new)) * rtol
+        err_norm = jnp.sqrt(jnp.mean(jnp.square(err / scale), axis=-1))  # scipy's RMS norm
         # A NaN/inf error norm (or state) is a rejected step with the minimum factor.
-        finite = jnp.isfinite(err_norm) & jnp.all(jnp.isfinite(y_new))
-        accept = finite & (err_norm < 1)
+        finite = jnp.isfinite(err_norm) & jnp.all(jnp.isfinite(y_new), axis=-1)
+        accept = active & ~underflow & finite & (err_norm < 1)
+        reject = active & ~underflow & ~accept
         safe_err = jnp.where(finite & (err_norm > 0), err_norm, 1.0)
-        fac = ctrl.safety * safe_err ** (-err_exp)
+        fac = ctrl.safety * safe_err ** (-ctrl.beta1)
         if ctrl.beta2:
-            fac = fac * jnp.where(s.n_acc > 0, s.err_prev, 1.0) ** ctrl.beta2
+            fac = fac * jnp.where(n_acc > 0, err_prev, 1.0) ** ctrl.beta2
         fac_acc = jnp.where(err_norm == 0, ctrl.max_factor, jnp.minimum(ctrl.max_factor, fac))
-        fac_acc = jnp.where(s.rejected, jnp.minimum(1.0, fac_acc), fac_acc)
+        fac_acc = jnp.where(rejected, jnp.minimum(1.0, fac_acc), fac_acc)
         fac_rej = jnp.where(finite, jnp.maximum(ctrl.min_factor, fac), ctrl.min_factor)
-        new_h_abs = h_abs * jnp.where(accept, fac_acc, fac_rej)
+        h_abs = jnp.where(accept, h_try * fac_acc, jnp.where(reject, h_try * fac_rej, h_abs))
 
-        # Under vmap the branch is a select and the save loop runs while any path has a save
-        # pending; the dense coefficients are formed inside it, so steps without saves skip them.
-        idx, out = jax.lax.cond(
-            accept,
-            lambda: _save_pending(ts, s.idx, s.out, s.t, t_new, s.y, lambda: _dense_coeffs(tab, ks, h), h, None),
-            lambda: (s.idx, s.out),
-        )
-        n_acc = s.n_acc + accept.astype(jnp.int32)
-        n_rej = s.n_rej + (~accept).astype(jnp.int32)
-        result = jnp.where(underflow, Result.STEP_UNDERFLOW, Result.SUCCESS)
+        # Saves in (t, t_new] of accepted steps: loop while any path has one pending, forming
+        # the dense-output coefficients only then; each pass writes one row per path.
+        def pending(idx):
+            return accept & (idx < n_save) & (ts[rows, jnp.minimum(idx, n_save - 1)] <= t_new)
+
+        def save_body(carry):
+            idx, out = carry
+            take = pending(idx)
+            q = jnp.moveaxis(_dense_coeffs(tab, ks, h[:, None]), 0, 1)  # (B, 4, n)
+            j = jnp.minimum(idx, n_save - 1)
+            theta = jnp.where(h > 0, (ts[rows, j] - t) / jnp.where(h > 0, h, 1.0), 0.0)
+            acc = q[:, -1]
+            for jj in range(q.shape[1] - 2, -1, -1):
+                acc = q[:, jj] + theta[:, None] * acc
+            val = y + theta[:, None] * acc
+            out = out.at[rows, j].set(jnp.where(take[:, None], val, out[rows, j]))
+            return idx + take.astype(idx.dtype), out
+
+        idx, out = jax.lax.while_loop(lambda c: jnp.any(pending(c[0])), save_body, (idx, out))
+        n_acc = n_acc + accept.astype(jnp.int32)
+        n_rej = n_rej + reject.astype(jnp.int32)
+        result = jnp.where(underflow, Result.STEP_UNDERFLOW, result)
+        done_now = accept & (t_new >= t1)
         result = jnp.where(
-            (result == Result.SUCCESS) & (n_acc + n_rej >= max_steps) & ~(accept & (t_new >= t1)),
-            Result.MAX_STEPS,
-            result,
+            active & (result == Result.SUCCESS) & (n_acc + n_rej >= max_steps) & ~done_now, Result.MAX_STEPS, result
         ).astype(jnp.int32)
-        keep = underflow  # an underflowing step is not taken
-        return State(
-            t=jnp.where(accept & ~keep, t_new, s.t),
-            y=jnp.where(accept & ~keep, y_new, s.y),
-            k0=jnp.where(accept & ~keep, k_new, s.k0),
-            h_abs=new_h_abs,
-            rejected=~accept,
-            err_prev=jnp.where(accept, jnp.maximum(err_norm, 1e-4), s.err_prev),
-            idx=jnp.where(keep, s.idx, idx),
-            out=jnp.where(keep, s.out, out),
-            n_acc=jnp.where(keep, s.n_acc, n_acc),
-            n_rej=jnp.where(keep, s.n_rej, n_rej),
-            result=result,
+        return (
+            jnp.where(accept, t_new, t),
+            jnp.where(accept[:, None], y_new, y),
+            jnp.where(accept[:, None], k_new, k0),
+            h_abs,
+            jnp.where(active, reject, rejected),
+            jnp.where(accept, jnp.maximum(err_norm, 1e-4), err_prev),
+            idx,
+            out,
+            n_acc,
+            n_rej,
+            result,
         )
 
-    z = jnp.asarray(0, jnp.int32)
-    s0 = State(
-        t=t0,
-        y=y0,
-        k0=f0,
-        h_abs=h_abs.astype(dtype),
-        rejected=jnp.asarray(False),
-        err_prev=jnp.asarray(1.0, dtype),
-        idx=z,
-        out=out0,
-        n_acc=z,
-        n_rej=z,
-        result=z,
-    )
-    s = jax.lax.while_loop(cond, body, s0)
-    return Solution(ts=ts, ys=s.out, result=s.result, num_accepted=s.n_acc, num_rejected=s.n_rej)
+    z = jnp.zeros((B,), jnp.int32)
+    init = (t0, y0, f0, h0.astype(dtype), jnp.zeros((B,), bool), jnp.ones((B,), dtype), z,
+            jnp.zeros((B, n_save, n), dtype), z, z, z)
+    t, y, k0, h_abs, rejected, err_prev, idx, out, n_acc, n_rej, result = jax.lax.while_loop(cond, body, init)
+    return Solution(ts=ts, ys=out, result=result, num_accepted=n_acc, num_rejected=n_rej)
