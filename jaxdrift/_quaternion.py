@@ -330,11 +330,17 @@ def skew_np(w):
 def quat_multiply_np(p, q):
     p = np.asarray(p, float)
     q = np.asarray(q, float)
-    pw, pv = p[..., :1], p[..., 1:]
-    qw, qv = q[..., :1], q[..., 1:]
-    w = pw * qw - np.sum(pv * qv, -1, keepdims=True)
-    v = pw * qv + qw * pv + np.cross(pv, qv)
-    return np.concatenate([w, v], -1)
+    p0, p1, p2, p3 = p[..., 0], p[..., 1], p[..., 2], p[..., 3]
+    q0, q1, q2, q3 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    return np.stack(
+        [
+            p0 * q0 - p1 * q1 - p2 * q2 - p3 * q3,
+            p0 * q1 + p1 * q0 + p2 * q3 - p3 * q2,
+            p0 * q2 - p1 * q3 + p2 * q0 + p3 * q1,
+            p0 * q3 + p1 * q2 - p2 * q1 + p3 * q0,
+        ],
+        -1,
+    )
 
 
 def quat_conjugate_np(q):
