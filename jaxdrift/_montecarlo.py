@@ -50,6 +50,10 @@ DEFAULT_MAX_MEMORY_BYTES = 1 << 30
 
 _AXIS = "paths"
 _PROBE_PATHS_PER_DEVICE = 64
+# chunk_size=None: at most about 1/_MIN_CHUNKS of the paths per chunk, so the progress bar moves,
+# but never fewer than _MIN_PATHS_PER_DEVICE per device (keeps the vmapped batches efficient).
+_MIN_CHUNKS = 10
+_MIN_PATHS_PER_DEVICE = 512
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -174,8 +178,10 @@ def _split_key(key):
 # --- host <-> device ---------------------------------------------------------------------------
 
 
-def _put(x: np.ndarray, sharding: NamedSharding) -> jax.Array:
-    """A global array from a host array that every process holds in full (multi-host safe)."""
+def _put(x, sharding: NamedSharding) -> jax.Array:
+    """A global array from an array that every process holds in full (multi-host safe)."""
+    if jax.process_count() == 1:
+        return jax.device_put(x, sharding)
     x = np.asarray(x)
     return jax.make_array_from_callback(x.shape, sharding, lambda index: x[index])
 
@@ -305,7 +311,8 @@ def monte_carlo(
         chunk_size: paths per chunk, rounded up to a multiple of the device count and capped at
             ``n_paths`` (rounded up likewise).  None picks the largest chunk whose compiled memory
             (measured with XLA's memory analysis on a probe compilation) fits
-            ``max_memory_bytes`` per device.
+            ``max_memory_bytes`` per device, and at most about a tenth of the paths (but not
+            fewer than 512 per device) so that the progress bar moves.
         quantiles: levels in [0, 1] of exact empirical quantiles at every save time.  Exact
             quantiles need every path's outputs on the host: ``n_paths * n_save * n_out`` values.
         drift_threshold: if given, each path's drift-off time is the first save time where
@@ -397,7 +404,7 @@ def monte_carlo(
     replicated = NamedSharding(mesh, P())
     sharded = NamedSharding(mesh, P(_AXIS))
     rep_args = (
-        jax.tree_util.tree_map(lambda x: _put(np.asarray(x), replicated), pf_dyn),
+        jax.tree_util.tree_map(lambda x: _put(x, replicated), pf_dyn),
         _put(key_data, replicated),
     )
     tail_args = (
@@ -499,7 +506,8 @@ def monte_carlo(
 
 
 def _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk, budget):
-    """Largest chunk whose per-device memory fits ``budget``, measured on a probe compilation.
+    """Largest chunk whose per-device memory fits ``budget``, measured on a probe compilation
+    (and at most about a tenth of the paths, not below 512 per device).
 
     The probe compiles the chunk function for ``_PROBE_PATHS_PER_DEVICE`` paths per device and
     reads XLA's memory analysis (arguments + outputs + temporaries per device); memory per path is
@@ -514,5 +522,6 @@ def _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk, budget):
                   + stats.temp_size_in_bytes)
     per_path = max(per_device / (probe // n_dev), 1.0)
     local = max(1, int(budget // per_path))
-    size = min(local * n_dev, max_chunk)
+    progress_cap = max(_MIN_PATHS_PER_DEVICE, -(-max_chunk // (_MIN_CHUNKS * n_dev))) * n_dev
+    size = min(local * n_dev, progress_cap, max_chunk)
     return size, (compiled if size == probe else None)

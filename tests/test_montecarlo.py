@@ -429,3 +429,33 @@ def test_real_ode_paths_against_exact_recursion():
     np.testing.assert_allclose(r.ys[:, :, 0], exact, rtol=0, atol=5e-11)
     np.testing.assert_allclose(r.mean[:, 0], exact.mean(axis=0), rtol=0, atol=5e-11)
     np.testing.assert_allclose(r.var[:, 0], exact.var(axis=0, ddof=1), rtol=1e-9)
+
+
+def test_automatic_chunk_size_rule():
+    """The rule behind chunk_size=None, on a stub compilation with known memory per path."""
+    from types import SimpleNamespace
+
+    from jaxdrift._montecarlo import _chunk_size_from_budget
+
+    class Stub:
+        def __init__(self, per_path_bytes):
+            self.per_path = per_path_bytes
+
+        def lower(self, idx_paths):
+            per_device = idx_paths // 2  # 2 devices
+            stats = SimpleNamespace(argument_size_in_bytes=0, output_size_in_bytes=0,
+                                    temp_size_in_bytes=self.per_path * per_device)
+            return SimpleNamespace(compile=lambda: SimpleNamespace(memory_analysis=lambda: stats))
+
+    def args(start, size):
+        return (size,)
+
+    # 1000 bytes per path, 1 MB per device -> 1000 paths per device
+    assert _chunk_size_from_budget(Stub(1000), args, 2, 100_000, 10**6)[0] == 2000
+    # a large budget: at most a tenth of the paths per chunk (5000 per device)
+    assert _chunk_size_from_budget(Stub(1000), args, 2, 100_000, 10**9)[0] == 10_000
+    # ... but never fewer than 512 per device, and never more than all paths
+    assert _chunk_size_from_budget(Stub(1000), args, 2, 3000, 10**9)[0] == 1024
+    assert _chunk_size_from_budget(Stub(1000), args, 2, 100, 10**9)[0] == 100
+    # a budget below one path still runs one path per device
+    assert _chunk_size_from_budget(Stub(1000), args, 2, 100_000, 10)[0] == 2
