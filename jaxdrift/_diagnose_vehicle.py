@@ -115,7 +115,8 @@ def _apply(model: dict, causes: list[Cause], theta) -> tuple[dict, dict]:
         if c.kind == "parameter_error":
             p[c.target] = model[c.target] * (1.0 + th)
         elif c.kind == "force_offset":
-            corr[c.target]["offset"] += th
+            for ch in (FORCE_CHANNELS if c.target == "both" else (c.target,)):
+                corr[ch]["offset"] += th
         elif c.kind == "force_scale":
             corr[c.target]["kappa"] += th
         elif c.kind == "force_delay":
@@ -726,6 +727,8 @@ def _candidates(pipe: ResidualPipeline) -> list[Cause]:
     out = []
     for ch in FORCE_CHANNELS:
         out += [Cause("force_offset", ch), Cause("force_scale", ch), Cause("force_delay", ch)]
+    # the same offset on both forces: indistinguishable from a mass error without heave data
+    out.append(Cause("force_offset", "both"))
     for key in MODEL_KEYS:
         out.append(Cause("parameter_error", key))
     return out
@@ -833,14 +836,32 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         chosen.append(c_best)
         fit = f_best
         path.append(fit.rss)
-    p = len(fit.causes)
-    sigma2 = fit.rss / max(n_rows - p, 1)
-    if p:
+    # backward elimination: a cause chosen early can lose its significance once later causes
+    # explain the same residual; drop the weakest until all pass, refitting each time
+    while True:
+        p = len(fit.causes)
+        sigma2 = fit.rss / max(n_rows - p, 1)
+        if not p:
+            cov, z = np.zeros((0, 0)), np.zeros(0)
+            break
         cov = _covariance(prob, fit.X, sigma2)
         z = fit.theta / np.sqrt(np.maximum(np.diag(cov), 1e-300))
-    else:
-        cov = np.zeros((0, 0))
-        z = np.zeros(0)
+        weakest = int(np.argmin(np.abs(z)))
+        if z[weakest] ** 2 >= crit or p == 0:
+            break
+        if log is not None:
+            log.append(f"drop {fit.causes[weakest].label} (z2 {z[weakest] ** 2:.3g})")
+        keep = [i for i in range(p) if i != weakest]
+        dropped = fit.causes[weakest]
+        alternatives.pop(dropped, None)
+        fit = _gauss_newton(prob, [fit.causes[i] for i in keep], fit.theta[keep])
+    # rank: most significant first
+    if len(fit.causes) > 1:
+        order = np.argsort(-np.abs(z))
+        fit = Fit([fit.causes[i] for i in order], fit.theta[order], fit.r, fit.res, fit.rss,
+                  fit.X[:, order])
+        cov = cov[np.ix_(order, order)]
+        z = z[order]
     # weak identifiability: the 95 % half-width a single-cause fit would have at this noise level
     weak = {}
     if dynamic:
@@ -857,3 +878,459 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
             weak[c.target] = 1.96 * math.sqrt(var)
     return Selection(fit, cov, math.sqrt(sigma2), z, alternatives, not_ident, weak,
                      base.rss, path)
+
+
+# --------------------------------------------------------------------------------------------
+# force-driven simulation (the engine) and the noise-only pitch envelope
+
+
+def _force_driven_pitch(run: VehicleRun, model: dict, forces: dict) -> np.ndarray:
+    """Pitch (and heave) of the force-driven model (A.3) driven by ``forces``, from the model's
+    static equilibrium, with the engine's adaptive DOPRI5 (rtol 1e-8: the undisturbed drift
+    is then integration error far below the measured one)."""
+    import equinox as eqx
+    import jax
+    import jax.numpy as jnp
+
+    from ._halfcar import force_driven_rhs, static_equilibrium
+    from ._inputs import SampledSignal
+    from ._params import HalfCarParams
+    from ._solve import solve_ode
+
+    with jax.enable_x64(True):
+        # arrays, not Python floats: filter_jit treats floats as static (a recompile per model)
+        params = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64),
+                                        HalfCarParams.from_dict(model))
+        tau = run.t - run.t[0]
+        sig = SampledSignal(0.0, run.dt, jnp.stack([jnp.asarray(forces["f1"]),
+                                                    jnp.asarray(forces["f2"])], axis=1))
+        y0 = static_equilibrium(params, "force")
+        sol = _jit_force_solve(params, sig, y0, jnp.asarray(tau), float(tau[-1]), 30 * run.n + 10_000)
+        ys = np.asarray(sol[0])
+        code = int(sol[1])
+    if code != 0:
+        raise RuntimeError(f"force-driven simulation failed (result code {code})")
+    return ys
+
+
+def _force_rhs(t, y, args):
+    from ._halfcar import force_driven_rhs
+
+    params, sig = args
+    f = sig(t)
+    return force_driven_rhs(t, y, params, f[0], f[1])
+
+
+def _jit_force_solve_impl(params, sig, y0, ts, t1, max_steps):
+    from ._solve import solve_ode
+
+    sol = solve_ode(_force_rhs, y0, 0.0, t1, saveat=ts, args=(params, sig), rtol=1e-8,
+                    atol=1e-10, max_steps=max_steps)
+    return sol.ys, sol.result
+
+
+_JIT_CACHE: dict = {}
+
+
+def _jit_force_solve(params, sig, y0, ts, t1, max_steps):
+    import equinox as eqx
+
+    if "f" not in _JIT_CACHE:
+        _JIT_CACHE["f"] = eqx.filter_jit(_jit_force_solve_impl)
+    return _JIT_CACHE["f"](params, sig, y0, ts, t1, max_steps)
+
+
+def _linear_force_system(p: dict):
+    """Linearised force-driven half-car (A.3 without the contact points, which do not feed
+    back): states [z1, z2, z3, beta, rates], inputs [f1, f2]."""
+    m1, m2, m3, I = p["m1"], p["m2"], p["m3"], p["I"]
+    k3, k4, d3, d4, a, b = p["k3"], p["k4"], p["d3"], p["d4"], p["a"], p["b"]
+    # f3 = K3 q + D3 q', f4 = K4 q + D4 q'
+    K3 = np.array([-k3, 0, k3, -b * k3])
+    D3 = np.array([-d3, 0, d3, -b * d3])
+    K4 = np.array([0, -k4, k4, a * k4])
+    D4 = np.array([0, -d4, d4, a * d4])
+    A = np.zeros((8, 8))
+    A[:4, 4:] = np.eye(4)
+    rows = [(K3 / m1, D3 / m1), (K4 / m2, D4 / m2), (-(K3 + K4) / m3, -(D3 + D4) / m3),
+            ((b * K3 - a * K4) / I, (b * D3 - a * D4) / I)]
+    for i, (K, D) in enumerate(rows):
+        A[4 + i, :4] = K
+        A[4 + i, 4:] = D
+    B = np.zeros((8, 2))
+    B[4, 0] = -1 / m1
+    B[5, 1] = -1 / m2
+    return A, B
+
+
+def noise_pitch_std(p: dict, h: float, n: int) -> np.ndarray:
+    """Standard deviation of the force-driven pitch error per unit force-noise sigma at the
+    samples: propagated covariance of the linearised model, each noise sample held over its
+    interval (exact for the linear model). Shape (n,)."""
+    A, B = _linear_force_system(p)
+    Phi, G = _discretise(A, B, h)
+    Gam = G[0]
+    var = np.zeros(n)
+    acc = 0.0
+    x = Gam.copy()  # response one step after a unit sample, both channels (8, 2)
+    for k in range(1, n):
+        acc += float(x[3, 0] ** 2 + x[3, 1] ** 2)
+        var[k] = acc
+        x = Phi @ x
+    return np.sqrt(var)
+
+
+# --------------------------------------------------------------------------------------------
+# the report
+
+
+def _rms(x) -> float:
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def _chi2_sigma_interval(sigma: float, dof: float) -> tuple[float, float]:
+    lo = sigma * math.sqrt(dof / scipy.stats.chi2.ppf(0.975, dof))
+    hi = sigma * math.sqrt(dof / scipy.stats.chi2.ppf(0.025, dof))
+    return lo, hi
+
+
+def _finding_for(c: Cause, theta: float, se: float) -> dict:
+    est = c.to_estimate(theta)
+    lo_t, hi_t = theta - 1.96 * se, theta + 1.96 * se
+    if c.kind == "force_scale":
+        # estimate = 1 / (1 + theta): decreasing
+        lo, hi = c.to_estimate(min(hi_t, 10.0)), c.to_estimate(max(lo_t, -0.99))
+    else:
+        lo, hi = c.to_estimate(lo_t), c.to_estimate(hi_t)
+    out = {"cause": c.kind}
+    if c.kind == "parameter_error":
+        out["parameter"] = c.target
+    else:
+        out["channel"] = c.target
+    out.update({"estimate": float(est), "unit": c.unit(), "interval": [float(lo), float(hi)]})
+    return out
+
+
+def _describe(c: Cause, est: float) -> str:
+    if c.kind == "force_offset":
+        where = "both forces" if c.target == "both" else c.target
+        return f"an offset of {est:+.4g} N on {where}"
+    if c.kind == "force_scale":
+        return f"a scale of {est:.5g} on {c.target}"
+    if c.kind == "force_delay":
+        return f"a delay of {est * 1e3:+.4g} ms on {c.target}"
+    return f"{c.target} = {est:.5g} x the model value"
+
+
+_CHANNEL_WORDS = {"moment": "enforced moment", "heave": "vertical enforced force",
+                  "spring1": "front spring force residual", "spring2": "rear spring force residual",
+                  "static": "static load at the first sample"}
+_CHANNEL_UNITS = {"moment": "N m", "heave": "N", "spring1": "N", "spring2": "N", "static": "N"}
+
+
+def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=None,
+                         *, with_simulation: bool = True, log: list | None = None) -> dict:
+    """Diagnose a vehicle run against a model; returns the report (``docs/measured-data.md``).
+
+    ``model``: dict of the seed's keys (default: the seed's table). ``plots_dir``: write the
+    figures there. ``with_simulation``: run the force-driven simulation for the pitch error
+    (the slowest part; tests of the cause logic may skip it).
+    """
+    model = dict(DEFAULT_MODEL if model is None else model)
+    pipe = ResidualPipeline(run)
+    prob = _Problem(pipe, model)
+    sel = _select(prob, log=log)
+    fit = sel.fit
+    n_rows = len(fit.r)
+    dynamic = n_rows > 2
+
+    # ---- residuals before / after (physical units)
+    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+    res0 = pipe.residuals(model, zero)
+    p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
+    res1 = pipe.residuals(p_ext, corr_ext)
+
+    def kept(res, nm):
+        return res.channels[nm][:prob.rows[nm]]
+
+    # ---- noise level
+    notes = []
+    if dynamic:
+        sigma_res = sel.sigma
+        dof = prob.effective_dof()
+        floor = _discretisation_floor(run, model, fit, sigma_res)
+        sig2 = max(sigma_res ** 2 - floor ** 2, 0.0)
+        sigma = math.sqrt(sig2)
+        lo, hi = _chi2_sigma_interval(sigma_res, dof)
+        lo = math.sqrt(max(lo ** 2 - floor ** 2, 0.0))
+        hi = math.sqrt(max(hi ** 2 - floor ** 2, 0.0))
+        noise_found = sigma > max(NOISE_MIN_N, 3.0 * floor) and lo > 0
+        noise_src = (f"the residual left after the fit ({n_rows} rows worth {dof:.0f} independent "
+                     f"samples) corresponds to white force noise of {sigma:.3g} N")
+        if floor > 0:
+            noise_src += f" (discretisation floor {floor:.2g} N removed)"
+    else:
+        hf = [_hf_noise_sigma(run[ch]) for ch in FORCE_CHANNELS]
+        sigma = float(np.sqrt(np.mean(np.square(hf))))
+        m = 2 * (run.n - 4)
+        lo, hi = sigma * (1 - 1.96 * 1.6 / math.sqrt(m)), sigma * (1 + 1.96 * 1.6 / math.sqrt(m))
+        noise_found = sigma > NOISE_MIN_N
+        noise_src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "
+                     f"forces give {sigma:.3g} N, an upper bound (the forces' own content near the "
+                     f"Nyquist frequency counts as noise here)")
+        notes.append("The run has neither beta, z3 nor s1/s2: only the static load and the force "
+                     "noise can be checked.")
+
+    # ---- findings
+    findings = []
+    se = np.sqrt(np.maximum(np.diag(sel.cov), 0.0)) if len(fit.causes) else np.zeros(0)
+    names = prob.names
+    main = "moment" if "moment" in names else next((nm for nm in names if nm != "static"), "static")
+    for i, c in enumerate(fit.causes):
+        est = c.to_estimate(fit.theta[i])
+        # residual RMS of the main channel without this cause (others kept)
+        others = [j for j in range(len(fit.causes)) if j != i]
+        p_o, corr_o = _apply(model, [fit.causes[j] for j in others], fit.theta[others])
+        r_without = pipe.residuals(p_o, corr_o)
+        a_rms = _rms(kept(r_without, main))
+        b_rms = _rms(kept(res1, main))
+        ev = (f"{_describe(c, est)} explains the {_CHANNEL_WORDS[main]}: its RMS falls from "
+              f"{a_rms:.4g} to {b_rms:.4g} {_CHANNEL_UNITS[main]} when it is corrected "
+              f"(z = {abs(sel.z[i]):.1f}, noise level {sigma:.3g} N)")
+        alts = sel.alternatives.get(c, [])
+        if alts:
+            ev += "; the data cannot tell it from " + ", ".join(
+                _describe(a, e) if e is not None else a.label for a, e in alts)
+        targets = [c.target] if not (c.kind == "force_offset" and c.target == "both") else list(FORCE_CHANNELS)
+        for tgt in targets:
+            f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i])
+            f["evidence"] = ev + "."
+            f["z"] = float(abs(sel.z[i]))
+            if alts:
+                f["indistinguishable_from"] = [
+                    {**({"parameter": a.target} if a.kind == "parameter_error" else {"channel": a.target}),
+                     "cause": a.kind, **({"estimate": e} if e is not None else {})} for a, e in alts]
+            findings.append(f)
+    if noise_found:
+        findings.append({"cause": "force_noise", "estimate": float(sigma), "unit": "N",
+                         "interval": [float(lo), float(hi)],
+                         "evidence": noise_src[0].upper() + noise_src[1:] + "."})
+    if not findings:
+        findings.append({"cause": "none", "evidence": (
+            "no systematic cause passes the test and " + noise_src +
+            ", indistinguishable from the numerical floor of the comparison.")})
+
+    # ---- not identifiable / weakly identifiable parameters
+    ni = sorted({c.target for c in sel.not_identifiable if c.kind == "parameter_error"})
+    if ni:
+        notes.append("Not identifiable from these signals (they do not enter the force-driven "
+                     "equations or the measured channels): " + ", ".join(ni) + ".")
+    weak = {k: v for k, v in sel.weakly_identifiable.items() if v > 0.02}
+    if weak:
+        notes.append("Weakly identifiable: a single error in " + ", ".join(
+            f"{k} smaller than {100 * v:.2g} %" for k, v in sorted(weak.items(), key=lambda kv: kv[1]))
+            + " would not be detected in this run" +
+            ("" if any(run.has(s) for s in ("s1", "s2")) else
+             " (spring stiffness and damping barely change the spring forces the wheels pass on; "
+             "measured spring travel s1/s2 would show them)") + ".")
+    if dynamic and not run.has("z3"):
+        notes.append("Without z3 a chassis-mass error, a gravity error and equal offsets on both "
+                     "forces differ only in their small dynamic signature.")
+
+    # ---- extended model and gain
+    params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
+    corrections = {ch: {"offset": float(corr_ext[ch]["offset"]),
+                        "scale": float(1.0 / (1.0 + corr_ext[ch]["kappa"])),
+                        "delay": float(corr_ext[ch]["delay"])} for ch in FORCE_CHANNELS}
+    metric = {"moment": "enforced_moment_rms", "heave": "vertical_enforced_force_rms",
+              "spring1": "spring_force_residual_rms", "spring2": "spring_force_residual_rms",
+              "static": "static_load_error_rms"}[main]
+    gain = {"metric": metric, "before": _rms(kept(res0, main)), "after": _rms(kept(res1, main)),
+            "unit": _CHANNEL_UNITS[main]}
+
+    sim_err = {}
+    if "moment" in names:
+        inertia = model["I"] * pipe.d2beta[:prob.rows["moment"]]
+        lam = kept(res0, "moment")
+        sim_err["enforced_moment"] = {"rms": _rms(lam), "max_abs": float(np.max(np.abs(lam))),
+                                      "inertia_term_rms": _rms(inertia)}
+    if "heave" in names:
+        mu = kept(res0, "heave")
+        sim_err["vertical_enforced_force"] = {"rms": _rms(mu), "max_abs": float(np.max(np.abs(mu))),
+                                              "inertia_term_rms": _rms(model["m3"] * pipe.d2z3)}
+    sims = {}
+    if with_simulation and (run.has("beta") or run.has("z3")):
+        forces0 = {ch: run[ch] for ch in FORCE_CHANNELS}
+        forces1 = pipe.corrected_forces(corr_ext)
+        y0 = _force_driven_pitch(run, model, forces0)
+        y1 = _force_driven_pitch(run, p_ext, forces1)
+        sims = {"before": y0, "after": y1}
+        env_unit = noise_pitch_std(model, run.dt, run.n)
+        sims["pitch_std_unit"] = env_unit
+        env = 1.96 * sigma * env_unit
+        for label, ys in (("before", y0), ("after", y1)):
+            if run.has("beta"):
+                err = ys[:, 3] - run["beta"]
+                above = np.flatnonzero(np.abs(err) > DRIFT_THRESHOLD_RAD)
+                entry = {"rms": _rms(err), "max_abs": float(np.max(np.abs(err))),
+                         "drift_off_time_s": float(run.t[above[0]] - run.t[0]) if above.size else None,
+                         "drift_threshold_rad": DRIFT_THRESHOLD_RAD,
+                         "outside_noise_envelope_fraction": float(np.mean(np.abs(err) > env))}
+                if label == "before":
+                    sim_err["beta"] = entry
+                else:
+                    gain["beta_error"] = {"before": sim_err["beta"], "after": entry}
+            if run.has("z3"):
+                ez = ys[:, 2] - run["z3"]
+                entry = {"rms": _rms(ez), "max_abs": float(np.max(np.abs(ez)))}
+                if label == "before":
+                    sim_err["z3"] = entry
+                else:
+                    gain["z3_error"] = {"before": sim_err["z3"], "after": entry}
+        if run.has("beta"):
+            gain["beta_rms_before"] = gain["beta_error"]["before"]["rms"]
+            gain["beta_rms_after"] = gain["beta_error"]["after"]["rms"]
+
+    report = {
+        "schema": SCHEMA,
+        "kind": "vehicle",
+        "simulation_error": sim_err,
+        "findings": findings,
+        "extended_model": {"parameters": params_ext, "corrections": corrections},
+        "gain": gain,
+        "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
+                "duration_s": float(run.t[-1] - run.t[0]),
+                "channels": sorted(run.channels), "residual_channels": names},
+        "notes": notes,
+    }
+    if plots_dir is not None:
+        write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, sims,
+                            sigma, report)
+    return report
+
+
+#: below this force-noise level [N] no noise is reported (about 1e-4 of the seed's static load)
+NOISE_MIN_N = 0.5
+
+
+def _discretisation_floor(run: VehicleRun, model: dict, fit: Fit, sigma_res: float) -> float:
+    """Noise-equivalent level of the comparison's own (discretisation) error.
+
+    The cubic-spline comparison errs as h^4; on every second sample it errs 16 times more while
+    white noise keeps its level. From the residual level at h and 2h:
+    sigma_2h^2 = s^2 + 256 e^2, sigma_h^2 = s^2 + e^2, so e^2 = (sigma_2h^2 - sigma_h^2) / 255.
+    """
+    if run.n < 4 * 100:
+        return 0.0
+    sub = VehicleRun(run.path, run.t[::2], {k: v[::2] for k, v in run.channels.items()})
+    pipe2 = ResidualPipeline(sub)
+    prob2 = _Problem(pipe2, model)
+    r2, _ = prob2.eval(fit.causes, fit.theta)
+    s2 = float(r2 @ r2) / max(len(r2) - len(fit.causes), 1)
+    e2 = max(s2 - sigma_res ** 2, 0.0) / 255.0
+    return math.sqrt(e2)
+
+
+# --------------------------------------------------------------------------------------------
+# figures
+
+
+def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, sims, sigma,
+                        report) -> list[str]:
+    """The pictures an engineer looks at; returns the paths written.
+
+    * ``motion.png``: measured pitch (and heave) against the force-driven simulation before and
+      after the extension;
+    * ``enforced_moment.png``: the enforced moment before/after against the inertia term I beta''
+      (or the vertical enforced force against m3 z3'');
+    * ``residual_envelope.png``: the residual after the fit against the 95 % noise-only band, and
+      the force-driven pitch error against the noise-only drift envelope.
+    """
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    os.makedirs(plots_dir, exist_ok=True)
+    t = run.t - run.t[0]
+    paths = []
+
+    if sims:
+        rows = [c for c in ("beta", "z3") if run.has(c)]
+        fig, axes = plt.subplots(len(rows), 1, figsize=(9, 3.2 * len(rows)), squeeze=False)
+        for ax, c in zip(axes[:, 0], rows):
+            idx = 3 if c == "beta" else 2
+            scale = 180 / np.pi if c == "beta" else 1.0
+            unit = "deg" if c == "beta" else "m"
+            ax.plot(t, run[c] * scale, "k", lw=1.2, label="measured")
+            ax.plot(t, sims["before"][:, idx] * scale, "C3", lw=0.9, label="force-driven, model")
+            ax.plot(t, sims["after"][:, idx] * scale, "C0", lw=0.9, label="force-driven, extended")
+            ax.set_ylabel(f"{c} [{unit}]")
+            lim = np.max(np.abs(run[c] * scale))
+            ax.set_ylim(-3 * lim - 1e-12 + np.mean(run[c] * scale), 3 * lim + 1e-12 + np.mean(run[c] * scale))
+            ax.legend(loc="upper left", fontsize=8)
+        axes[-1, 0].set_xlabel("t [s]")
+        axes[0, 0].set_title("Measured motion against the force-driven simulation")
+        fig.tight_layout()
+        path = os.path.join(plots_dir, "motion.png")
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+
+    main = "moment" if "moment" in prob.names else ("heave" if "heave" in prob.names else None)
+    if main is not None:
+        tt = t[1:1 + prob.rows[main]]
+        if main == "moment":
+            inertia = model["I"] * pipe.d2beta[:prob.rows[main]]
+            lab, unit = "inertia term I beta''", "N m"
+        else:
+            inertia = model["m3"] * pipe.d2z3[:prob.rows[main]]
+            lab, unit = "inertia term m3 z3''", "N"
+        fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+        axes[0].plot(tt, inertia, "0.4", lw=0.7)
+        axes[0].set_ylabel(f"{lab} [{unit}]")
+        axes[0].set_title("Enforced " + ("moment (A.5)" if main == "moment" else "vertical force")
+                          + " against the inertia term")
+        axes[1].plot(tt, res0.channels[main][:prob.rows[main]], "C3", lw=0.7, label="model")
+        axes[1].plot(tt, res1.channels[main][:prob.rows[main]], "C0", lw=0.7, label="extended model")
+        axes[1].set_ylabel(f"enforced [{unit}]")
+        axes[1].set_xlabel("t [s]")
+        axes[1].legend(loc="upper left", fontsize=8)
+        fig.tight_layout()
+        path = os.path.join(plots_dir, "enforced_moment.png")
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+
+    nplot = (main is not None) + bool(sims and run.has("beta"))
+    if nplot:
+        fig, axes = plt.subplots(nplot, 1, figsize=(9, 3.2 * nplot), squeeze=False)
+        k = 0
+        if main is not None:
+            ax = axes[k, 0]
+            k += 1
+            tt = t[1:1 + prob.rows[main]]
+            band = 1.96 * sigma * prob.noise_std[main]
+            ax.plot(tt, res1.channels[main][:prob.rows[main]], "C0", lw=0.6, label="residual, extended model")
+            ax.fill_between(tt, -band, band, color="0.8", alpha=0.7, label="95 % noise-only band")
+            ax.set_ylabel(f"{main} residual")
+            ax.legend(loc="upper left", fontsize=8)
+            ax.set_title("Residual against the noise level")
+        if sims and run.has("beta"):
+            ax = axes[k, 0]
+            env = 1.96 * sigma * sims["pitch_std_unit"] * 180 / np.pi
+            ax.fill_between(t, -env, env, color="0.8", alpha=0.7, label="95 % noise-only drift envelope")
+            ax.plot(t, (sims["before"][:, 3] - run["beta"]) * 180 / np.pi, "C3", lw=0.8, label="pitch error, model")
+            ax.plot(t, (sims["after"][:, 3] - run["beta"]) * 180 / np.pi, "C0", lw=0.8, label="pitch error, extended")
+            ax.set_ylabel("pitch error [deg]")
+            ax.legend(loc="upper left", fontsize=8)
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.tight_layout()
+        path = os.path.join(plots_dir, "residual_envelope.png")
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+    return paths

@@ -1,0 +1,216 @@
+"""Synthetic "true" vehicle runs with hidden effects (tests, the shipped example, benchmarks).
+
+A run is the seed's virtual measurement (section 4.1, step 1): the road-driven half-car (A.4) of
+the *true* vehicle on an ISO 8608 road with hills (``jaxdrift._road``), integrated by the engine
+(adaptive DOPRI5 at tight tolerances), sampled at ``fs``; the contact forces (4.3) are the true
+wheel forces. The sensors then apply the hidden effects in the measured-data contract's form
+(``docs/measured-data.md``): ``measured(t) = scale * true(t - delay) + offset + noise``; a
+``parameter_error`` makes the true vehicle differ from the model (true = ratio x model).
+
+:func:`draw_effects` draws hidden effects (kind, channel or parameter, size) from a seed, at
+"realistic" or "small" magnitudes, restricted to what the run's channels can reveal.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._csvio import DEFAULT_MODEL
+
+__all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES"]
+
+#: (low, high) magnitude of each effect kind; the sign is drawn separately where it matters
+SIZES = {
+    "realistic": {"force_noise": (10.0, 40.0), "force_offset": (30.0, 120.0),
+                  "force_scale": (0.01, 0.05), "force_delay": (0.002, 0.010),
+                  "parameter_error": (0.04, 0.10)},
+    "small": {"force_noise": (2.0, 5.0), "force_offset": (8.0, 20.0),
+              "force_scale": (0.003, 0.008), "force_delay": (0.0006, 0.002),
+              "parameter_error": (0.015, 0.03)},
+}
+
+#: parameters a run reveals, by the channels it has (without spring travel the chassis
+#: spring stiffness and damping barely change the forces the wheels pass on)
+def revealed_parameters(channels) -> tuple[str, ...]:
+    ch = set(channels)
+    keys = []
+    if "beta" in ch:
+        keys += ["I", "a", "b"]
+    if "z3" in ch or "beta" in ch:
+        keys += ["m3"]
+    if "s1" in ch and "beta" in ch:
+        keys += ["k3", "d3"]
+    if "s2" in ch and "beta" in ch:
+        keys += ["k4", "d4"]
+    return tuple(keys)
+
+
+def draw_effects(seed: int, *, n_systematic: int = 1, size: str = "realistic",
+                 channels=("beta",), kinds=None, noise: bool = True) -> list[dict]:
+    """Hidden effects drawn from ``seed``: ``n_systematic`` systematic ones (distinct kinds and
+    targets) plus, if ``noise``, white force noise. Each is a dict ``{"cause", "value",
+    "channel" | "parameter"}`` in the report's terms (scale and parameter values are ratios)."""
+    rng = np.random.default_rng(seed)
+    lo_hi = SIZES[size]
+    params = revealed_parameters(channels)
+    pool = list(kinds) if kinds is not None else ["force_offset", "force_scale", "force_delay",
+                                                   "parameter_error"]
+    if not params and "parameter_error" in pool:
+        pool.remove("parameter_error")
+    out = []
+    used = set()
+    while len([e for e in out if e["cause"] != "force_noise"]) < n_systematic:
+        kind = pool[rng.integers(len(pool))]
+        lo, hi = lo_hi[kind]
+        mag = rng.uniform(lo, hi)
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        if kind == "parameter_error":
+            target = params[rng.integers(len(params))]
+            e = {"cause": kind, "parameter": target, "value": 1.0 + sign * mag}
+        else:
+            target = ("f1", "f2")[rng.integers(2)]
+            if kind == "force_scale":
+                val = 1.0 + sign * mag
+            elif kind == "force_delay":
+                val = mag  # sensors lag; they do not lead
+            else:
+                val = sign * mag
+            e = {"cause": kind, "channel": target, "value": val}
+        key = (kind, target)
+        if key in used or (kind != "parameter_error" and any(k[0] == kind for k in used)):
+            continue
+        used.add(key)
+        out.append(e)
+    if noise:
+        lo, hi = lo_hi["force_noise"]
+        out.append({"cause": "force_noise", "value": float(rng.uniform(lo, hi))})
+    return out
+
+
+def _solver():
+    import equinox as eqx
+
+    from ._halfcar import road_driven_rhs
+    from ._solve import solve_ode
+
+    def rhs(t, y, args):
+        params, wheels = args
+        zeta, dzeta = wheels(t)
+        return road_driven_rhs(t, y, params, zeta, dzeta)
+
+    @eqx.filter_jit
+    def solve(params, wheels, y0, ts, t1):
+        sol = solve_ode(rhs, y0, 0.0, t1, saveat=ts, args=(params, wheels), rtol=1e-9,
+                        atol=1e-12, max_steps=2_000_000)
+        return sol.ys, sol.result
+
+    return solve
+
+
+_SOLVE = {}
+
+
+def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 500.0,
+                      speed: float = 15.0, road_class: str = "B", seed: int = 0,
+                      hill_height: float = 2.0, extra_times=None) -> dict:
+    """True signals of the road-driven vehicle at ``t = k / fs`` (and at ``extra_times``).
+
+    Returns a dict of arrays: ``t, f1, f2, z1, z2, z3, beta, beta_rate, s1, s2, zeta1, zeta2``
+    and, when ``extra_times`` is given, ``extra`` with the forces at those times.
+    """
+    import jax
+    import jax.numpy as jnp
+
+    from ._halfcar import contact_forces, static_equilibrium
+    from ._params import HalfCarParams
+    from ._road import iso8608_road
+
+    n = int(round(duration * fs)) + 1
+    t = np.arange(n) / fs
+    extra = np.zeros(0) if extra_times is None else np.clip(np.asarray(extra_times, float), 0, t[-1])
+    allt = np.concatenate([t, extra])
+    order = np.argsort(allt, kind="stable")
+    with jax.enable_x64(True):
+        p = HalfCarParams.from_dict(true_params)
+        pa = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), p)
+        road = iso8608_road(road_class, seed=seed, hill_height=hill_height)
+        wb = float(true_params["a"] + true_params["b"])
+        wheels = road.sampled_wheel_inputs(float(speed), wb, float(t[-1]) + 0.01, dt=2.5e-4)
+        y0 = static_equilibrium(pa, "road")
+        if "f" not in _SOLVE:
+            _SOLVE["f"] = _solver()
+        ys, code = _SOLVE["f"](pa, wheels, y0, jnp.asarray(allt[order]), float(t[-1]))
+        if int(code) != 0:
+            raise RuntimeError(f"true-run simulation failed (result code {int(code)})")
+        ys_all = np.empty((len(allt), 8))
+        ys_all[order] = np.asarray(ys)
+        zeta, dzeta = road.wheel_inputs(jnp.asarray(allt), float(speed), wb)
+        f = np.asarray(jax.vmap(lambda x, z, dz: contact_forces(x, pa, z, dz))(
+            jnp.asarray(ys_all), zeta, dzeta))
+        zeta = np.asarray(zeta)
+    y = ys_all[:n]
+    sb = np.sin(y[:, 3])
+    out = {"t": t, "f1": f[:n, 0], "f2": f[:n, 1], "z1": y[:, 0], "z2": y[:, 1], "z3": y[:, 2],
+           "beta": y[:, 3], "beta_rate": y[:, 7],
+           "s1": y[:, 2] - y[:, 0] - true_params["b"] * sb,
+           "s2": y[:, 2] - y[:, 1] + true_params["a"] * sb,
+           "zeta1": zeta[:n, 0], "zeta2": zeta[:n, 1]}
+    if extra.size:
+        out["extra"] = {"t": extra, "f1": f[n:, 0], "f2": f[n:, 1]}
+    return out
+
+
+def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = None) -> dict:
+    """Measured forces from the true ones: ``scale * true(t - delay) + offset + noise``.
+
+    ``delayed``: {channel: true force at t - delay} (from :func:`simulate_true_run`'s extra
+    times); noise from ``numpy.random.default_rng(seed)``.
+    """
+    meas = {ch: np.array(true[ch], dtype=float) for ch in ("f1", "f2")}
+    for e in effects:
+        if e["cause"] == "force_delay":
+            meas[e["channel"]] = np.array(delayed[e["channel"]], dtype=float)
+    for e in effects:
+        if e["cause"] == "force_scale":
+            meas[e["channel"]] = meas[e["channel"]] * float(e["value"])
+    for e in effects:
+        if e["cause"] == "force_offset":
+            meas[e["channel"]] = meas[e["channel"]] + float(e["value"])
+    rng = np.random.default_rng(seed)
+    for e in effects:
+        if e["cause"] == "force_noise":
+            for ch in ("f1", "f2"):
+                meas[ch] = meas[ch] + float(e["value"]) * rng.standard_normal(len(meas[ch]))
+    return meas
+
+
+def make_run(effects=(), *, model: dict | None = None, duration: float = 20.0, fs: float = 500.0,
+             speed: float = 15.0, road_class: str = "B", seed: int = 0,
+             channels=("beta",), hill_height: float = 2.0) -> tuple[dict, dict]:
+    """A measured run with hidden ``effects`` (see :func:`draw_effects`) against ``model``.
+
+    Returns ``(columns, truth)``: columns ``t, f1, f2`` plus the requested ``channels`` (true
+    motion), ready for :func:`jaxdrift._csvio.write_vehicle_run`; ``truth`` holds the true
+    parameters and signals.
+    """
+    model = dict(DEFAULT_MODEL if model is None else model)
+    true_params = dict(model)
+    for e in effects:
+        if e["cause"] == "parameter_error":
+            true_params[e["parameter"]] = model[e["parameter"]] * float(e["value"])
+    n = int(round(duration * fs)) + 1
+    t = np.arange(n) / fs
+    delays = [e for e in effects if e["cause"] == "force_delay"]
+    extra = np.concatenate([t - float(e["value"]) for e in delays]) if delays else None
+    true = simulate_true_run(true_params, duration=duration, fs=fs, speed=speed,
+                             road_class=road_class, seed=seed, hill_height=hill_height,
+                             extra_times=extra)
+    delayed = {}
+    for i, e in enumerate(delays):
+        sl = slice(i * n, (i + 1) * n)
+        delayed[e["channel"]] = true["extra"][e["channel"]][sl]
+    meas = apply_sensor_effects(true, effects, seed + 7919, delayed)
+    cols = {"t": t, "f1": meas["f1"], "f2": meas["f2"]}
+    for c in channels:
+        cols[c] = true[c]
+    return cols, {"params": true_params, "signals": true}
