@@ -166,16 +166,17 @@ def _check_time(fname: str, t: np.ndarray, first_line: int) -> None:
         i = int(bad[0]) + 1
         raise InputError(
             f"{fname}, line {first_line + i}, column t: time not strictly increasing "
-            f"(t = {t[i]!r} after {t[i - 1]!r})"
+            f"(t = {float(t[i])!r} after {float(t[i - 1])!r})"
         )
-    dt = (t[-1] - t[0]) / (n - 1)
+    dt = float(np.median(d))  # the nominal step; one odd step must not move it
     dev = np.abs(d - dt) / dt
     bad = np.flatnonzero(dev > JITTER_TOL)
     if bad.size:
         i = int(bad[0]) + 1
         raise InputError(
-            f"{fname}, line {first_line + i}, column t: non-uniform sampling (step {d[i - 1]!r} s, "
-            f"mean step {dt!r} s, relative deviation {dev[i - 1]:.2g} > {JITTER_TOL:g})"
+            f"{fname}, line {first_line + i}, column t: non-uniform sampling (step "
+            f"{float(d[i - 1]):.9g} s where the others are {dt:.9g} s; relative deviation "
+            f"{float(dev[i - 1]):.2g} > {JITTER_TOL:g})"
         )
     duration = t[-1] - t[0]
     if n < MIN_SAMPLES or duration < MIN_DURATION_S:
@@ -272,7 +273,8 @@ def validate_model(obj, fname: str = "model") -> dict[str, float]:
         raise InputError(f"{fname}: expected a JSON object with keys {', '.join(MODEL_KEYS)}")
     unknown = [k for k in obj if k not in MODEL_KEYS]
     if unknown:
-        hint = difflib.get_close_matches(unknown[0], MODEL_KEYS, n=1)
+        missing = [k for k in MODEL_KEYS if k not in obj]
+        hint = difflib.get_close_matches(unknown[0], missing or MODEL_KEYS, n=1, cutoff=0.5)
         did = f" (did you mean {hint[0]!r}?)" if hint else ""
         raise InputError(f"{fname}: unknown key {unknown[0]!r}{did}; keys are {', '.join(MODEL_KEYS)}")
     missing = [k for k in MODEL_KEYS if k not in obj]
