@@ -133,23 +133,23 @@ def test_propagated_covariance_equals_point_mass_closed_form():
     np.testing.assert_array_equal(np.asarray(means), 0.0)
 
 
-def test_propagated_covariance_adaptive_and_derived():
+def test_propagated_covariance_derived_quantities():
     ts = np.array([2.0, 30.0])
     res = propagate_covariance(
         _pm_rhs, jnp.zeros(2), 0.0, 30.0, saveat=ts, inputs=lambda t: jnp.zeros(1),
-        noise_sigma=0.5, noise_dt=1e-3, args=(2.0, 0.3), rtol=1e-9,
+        noise_sigma=0.5, noise_dt=1e-3, args=(2.0, 0.3), dt=0.01,
         derived=lambda t, y, args: jnp.stack([y[0] + 2 * y[1], y[0] * y[1]]),
     )
     c = point_mass_covariance(ts, sigma_m=0.5, dt=1e-3, m=2.0, eta=0.3)
-    np.testing.assert_allclose(np.asarray(res.var), np.stack([c[:, 0, 0], c[:, 1, 1]], -1), rtol=1e-7)
+    np.testing.assert_allclose(np.asarray(res.var), np.stack([c[:, 0, 0], c[:, 1, 1]], -1), rtol=1e-9)
     j = np.array([1.0, 2.0])
-    np.testing.assert_allclose(np.asarray(res.derived_var[:, 0]), j @ c @ j, rtol=1e-7)
+    np.testing.assert_allclose(np.asarray(res.derived_var[:, 0]), j @ c @ j, rtol=1e-9)
     # d(x v) = v dx + x dv = 0 at the zero reference.
     np.testing.assert_array_equal(np.asarray(res.derived_var[:, 1]), 0.0)
 
 
 def test_propagated_covariance_linear_system_against_van_loan():
-    # Time-invariant linear system with a constant input: P(t) = int_0^t e^{As} B Q B^T e^{A^T s} ds,
+    # Adaptive mode. Time-invariant linear system with a constant input: P(t) = int_0^t e^{As} B Q B^T e^{A^T s} ds,
     # computed by Van Loan's block matrix exponential; the limit solves the Lyapunov equation.
     rng = np.random.default_rng(0)
     n, m = 4, 2
@@ -164,7 +164,7 @@ def test_propagated_covariance_linear_system_against_van_loan():
     P0 = np.diag([0.1, 0.0, 0.2, 0.05])
     res = propagate_covariance(
         rhs, jnp.asarray(y0), 0.0, 20.0, saveat=ts, inputs=lambda t: jnp.asarray(u_const),
-        noise_sigma=sig, noise_dt=ndt, P0=jnp.asarray(P0), dt=0.005,
+        noise_sigma=sig, noise_dt=ndt, P0=jnp.asarray(P0), rtol=1e-10, atol=1e-12,
     )
     W = Bm @ Q @ Bm.T
     for k, t in enumerate(ts[:3]):  # (at t = 20 the block exponential loses digits: e^{60})
@@ -219,3 +219,137 @@ def test_monte_carlo_point_mass_within_chi_square(eta):
     for j in range(2):
         ok, (lo, hi) = _inside(ys[:, :, j].var(axis=0, ddof=1), n_paths, want[:, j, j])
         assert ok, (j, lo, want[:, j, j], hi)
+
+
+# --------------------------------------------------------------------------- half-car
+
+
+def test_halfcar_free_modes_are_rigid_motions():
+    # Independent check of R: the linearised force-driven vector field (jacfwd of the model's own
+    # code) has no stiffness or damping along the rigid motions.
+    from jaxdrift._halfcar import force_driven_rhs
+    from jaxdrift._params import HalfCarParams
+
+    p = HalfCarParams(a=1.3, m1=20.0)
+    Mr, G, R = halfcar_free_modes(p)
+    A = np.asarray(jax.jit(jax.jacfwd(lambda x: force_driven_rhs(0.0, x, p, 0.0, 0.0, linear=True)))(jnp.zeros(10)))
+    # accelerations (rows 4..7) do not depend on rigid displacements or rigid velocities
+    np.testing.assert_allclose(A[4:8, 0:4] @ R, 0.0, atol=1e-9)
+    np.testing.assert_allclose(A[4:8, 4:8] @ R, 0.0, atol=1e-9)
+    M = np.diag([20.0, 15.0, 750.0, 500.0])
+    np.testing.assert_allclose(Mr, R.T @ M @ R)
+    np.testing.assert_allclose(Mr[1, 1], 500.0 + 20.0 * 1.0 + 15.0 * 1.3**2)
+    # Forces enter the accelerations as -1/m on z1, z2; projected: G = R^T B.
+    Bf = np.asarray(jax.jit(jax.jacfwd(lambda f: force_driven_rhs(0.0, jnp.zeros(10), p, f[0], f[1], linear=True)))(jnp.zeros(2)))
+    np.testing.assert_allclose(R.T @ M @ Bf[4:8], G, atol=1e-12)
+
+
+def test_propagated_covariance_linear_halfcar_free_modes_exact():
+    # In the linear model the mass-weighted rigid coordinates q = M_r^-1 R^T M z are exactly
+    # double-integrated force noise, so the propagated covariance projected on them is the t^3 law
+    # for every t (an asymmetric car, so heave and pitch are coupled through M_r).
+    from jaxdrift._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
+    from jaxdrift._params import HalfCarParams
+
+    p = HalfCarParams(a=1.3, m1=20.0)
+    f1, f2, _, _ = equilibrium_forces(p)
+    ts = np.array([0.5, 2.0, 6.0])
+    # (The tyre rows have eigenvalue -k1/d1 = -1000 1/s, doubled in the covariance equation: a
+    # fixed DOPRI5 step must stay below about 3.3 / 2000 s.)
+    res = propagate_covariance(
+        lambda t, x, u, args: force_driven_rhs(t, x, p, u[0], u[1], linear=True),
+        static_equilibrium(p, "force", linear=True), 0.0, 6.0, saveat=ts,
+        inputs=lambda t: jnp.array([f1, f2]), noise_sigma=32.0, noise_dt=1e-3, dt=1e-3,
+    )
+    Mr, G, R = halfcar_free_modes(p)
+    L = np.linalg.solve(Mr, R.T @ np.diag([20.0, 15.0, 750.0, 500.0]))
+    Pq = np.einsum("ij,tjk,lk->til", L, np.asarray(res.cov[:, :4, :4]), L)
+    want = halfcar_free_mode_covariance(ts, p, sigma_m=32.0, dt=1e-3)
+    np.testing.assert_allclose(Pq, want, rtol=1e-7)
+    assert abs(want[0, 0, 1]) > 0.05 * np.sqrt(want[0, 0, 0] * want[0, 1, 1])  # coupled
+
+
+def test_monte_carlo_halfcar_fast_mode_vs_float64_and_propagated():
+    # Noisy forces around static equilibrium on the seed's (nonlinear) half-car, 1 ms DOPRI5:
+    # (1) the float32 + Kahan fast mode on the same noise as the float64 engine: per-path
+    #     differences far below the spread; (2) both ensembles' variances of z3 and beta contain the
+    #     propagated (linearised) variance within the 99.9 % chi-square interval.
+    from jaxdrift._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
+    from jaxdrift._params import HalfCarParams
+
+    p = HalfCarParams()
+    f1, f2, _, _ = equilibrium_forces(p)
+    feq = jnp.array([f1, f2])
+    x0 = static_equilibrium(p, "force")
+    T, dt, sigma, n_paths = 3.0, 1e-3, 32.0, 256
+    n = int(round(T / dt)) + 1
+    ts = np.array([1.0, 2.0, 3.0])
+    key = jax.random.key(2024)
+
+    def rhs(t, x, sig):
+        f = sig(t)
+        return force_driven_rhs(t, x, p, f[0], f[1])
+
+    def path(i):
+        u = feq + sigma * jaxdrift.path_normals(key, i, n, 2)
+        y64 = jaxdrift.solve_ode(rhs, x0, 0.0, T, saveat=ts, args=jaxdrift.SampledSignal(0.0, dt, u), dt=dt).ys
+        sig32 = jaxdrift.SampledSignal(0.0, dt, u.astype(jnp.float32))
+        y32 = jaxdrift.solve_fixed_fast(rhs, x0, 0.0, T, saveat=ts, args=sig32, dt=dt).ys
+        return y64[:, 2:4], y32[:, 2:4]
+
+    y64, y32 = (np.asarray(a, dtype=np.float64) for a in jax.jit(jax.vmap(path))(jnp.arange(n_paths)))
+    spread = y64.std(axis=0)
+    assert np.max(np.abs(y32 - y64) / spread) < 1e-3
+
+    res = propagate_covariance(
+        lambda t, x, u, args: force_driven_rhs(t, x, p, u[0], u[1]), x0, 0.0, T, saveat=ts,
+        inputs=lambda t: feq, noise_sigma=sigma, noise_dt=dt, dt=dt,
+    )
+    want = np.asarray(res.var)[:, 2:4]
+    for ys in (y64, y32):
+        ok, (lo, hi) = _inside(ys.var(axis=0, ddof=1), n_paths, want)
+        assert ok, (lo, want, hi)
+    # At the static reference the free-mode law is the leading term of Var beta (elastic part small).
+    free = halfcar_free_mode_covariance(ts, p, sigma_m=sigma, dt=dt)[:, 1, 1]
+    np.testing.assert_allclose(want[:, 1], free, rtol=0.05)
+
+
+# --------------------------------------------------------------------------- fast mode
+
+
+def test_fast_mode_kahan_keeps_the_sum():
+    # A constant small rate on a state of size 0.05 over 60,000 float32 steps: the plain update
+    # loses the increment's low bits every step, the compensated one keeps the exact sum.
+    T, dt = 60.0, 1e-3
+    ts = np.array([0.0, 30.0, 60.0])
+    f = lambda t, y, a: jnp.full_like(y, 1.234567e-4)
+    y0 = jnp.array([0.05, 7.5e3])
+    exact = np.asarray(y0, np.float64)[None] + 1.234567e-4 * ts[:, None]
+    comp = np.asarray(jaxdrift.solve_fixed_fast(f, y0, 0.0, T, dt=dt, saveat=ts).ys, np.float64)
+    plain = np.asarray(jaxdrift.solve_fixed_fast(f, y0, 0.0, T, dt=dt, saveat=ts, compensated=False).ys, np.float64)
+    ulp = np.spacing(np.abs(exact).astype(np.float32)).astype(np.float64)
+    assert np.all(np.abs(comp - exact) <= 2 * ulp)
+    assert np.max(np.abs(plain - exact) / ulp) > 100
+
+
+def test_fast_mode_float64_matches_engine_fixed_step():
+    # Same tableau, same grid: the fast kernel in float64 reproduces solve_ode(dt=...) to rounding.
+    f = lambda t, y, a: jnp.stack([y[1], -4.0 * y[0] - 0.3 * y[1] + jnp.sin(3.0 * t)])
+    ts = np.linspace(0.0, 10.0, 11)
+    ref = jaxdrift.solve_ode(f, jnp.array([1.0, 0.0]), 0.0, 10.0, saveat=ts, dt=0.01).ys
+    got = jaxdrift.solve_fixed_fast(f, jnp.array([1.0, 0.0]), 0.0, 10.0, saveat=ts, dt=0.01, dtype=jnp.float64,
+                                    compensated=False).ys
+    np.testing.assert_allclose(np.asarray(got), np.asarray(ref), rtol=0, atol=1e-13)
+    got32 = jaxdrift.solve_fixed_fast(f, jnp.array([1.0, 0.0]), 0.0, 10.0, saveat=ts, dt=0.01).ys
+    assert got32.dtype == jnp.float32
+    np.testing.assert_allclose(np.asarray(got32, np.float64), np.asarray(ref), atol=3e-6)
+
+
+def test_fast_mode_rejects_off_grid_saves():
+    f = lambda t, y, a: -y
+    with pytest.raises(ValueError, match="step grid"):
+        jaxdrift.solve_fixed_fast(f, jnp.ones(1), 0.0, 1.0, dt=0.1, saveat=[0.05, 0.55])
+    with pytest.raises(ValueError, match="equally spaced"):
+        jaxdrift.solve_fixed_fast(f, jnp.ones(1), 0.0, 1.0, dt=0.1, saveat=[0.1, 0.2, 0.5])
+    with pytest.raises(ValueError, match="whole number"):
+        jaxdrift.solve_fixed_fast(f, jnp.ones(1), 0.0, 1.05, dt=0.1, saveat=[0.1])
