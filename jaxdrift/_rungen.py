@@ -38,9 +38,9 @@ def revealed_parameters(channels) -> tuple[str, ...]:
         keys += ["I", "a", "b"]
     if "z3" in ch or "beta" in ch:
         keys += ["m3"]
-    if "s1" in ch and "beta" in ch:
+    if "s1" in ch:
         keys += ["k3", "d3"]
-    if "s2" in ch and "beta" in ch:
+    if "s2" in ch:
         keys += ["k4", "d4"]
     return tuple(keys)
 
