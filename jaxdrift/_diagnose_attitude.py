@@ -302,17 +302,32 @@ def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_
     n_int = len(starts)
     nseg = [int(s.max()) + 1 for s in seg_of_interval_per_channel]
     offs = np.concatenate([[0], np.cumsum(nseg)])
-    p = int(offs[-1]) + 3
+    sc = int(offs[-1])
+    # parameters: biases, 3 scales, and a sampling-convention nuisance lam: the rate held over step k
+    # is omega_k + lam (D1_k - D3_k / 12), D1_k = omega_{k+1} - omega_k,
+    # D3_k = omega_{k+2} - omega_{k+1} - omega_k + omega_{k-1}. Samples of a continuous rate at t_k give
+    # the cubic step average, lam = 1/2; rates held over each step (the reference made by the
+    # exponential map of omega_k) give lam = 0; a small gyro delay shifts lam. It is fitted: its
+    # regressor telescopes over an interval, so it costs the other parameters almost nothing, while a
+    # wrong fixed convention leaves O(dt) errors per interval that look like scale errors.
+    p = sc + 4
     theta = np.zeros(p)
-    theta[offs[-1] :] = 1.0
+    theta[sc : sc + 3] = 1.0
+    theta[sc + 3] = 0.5
     rows = np.arange(a0, aN)
+    w_pad = np.concatenate([w[:1], w, w[-1:], w[-1:]], 0)  # w_pad[k + 1] = w[k]
     int_of_row = np.searchsorted(anchors, rows, side="right") - 1
     dt_int = (ends - starts) * dt
     wts = 1.0 / (noise_var * dt_int)  # per interval (each of 3 components)
     for it in range(max_iter):
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
-        s = theta[offs[-1] :]
-        wc = (w[a0:aN] - b_rows) / s
+        s = theta[sc : sc + 3]
+        lam = theta[sc + 3]
+        b_ext = np.concatenate([b_rows[:1], b_rows, b_rows[-1:], b_rows[-1:]], 0)
+        wc_all = (w_pad[a0 : aN + 3] - b_ext) / s  # rows a0-1 .. aN+1
+        w0, w1, w2, wm = wc_all[1:-2], wc_all[2:-1], wc_all[3:], wc_all[:-3]
+        dw = (w1 - w0) - (w2 - w1 - w0 + wm) / 12.0
+        wc = w0 + lam * dw  # rate over each step
         d = quat_exp_np(wc * dt)
         # per-interval integration: prefix products restart at every anchor (re-anchored on the reference)
         P = np.empty((len(rows) + 1, 4))
@@ -336,7 +351,8 @@ def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_
         for c in range(3):
             cols = offs[c] + seg_of_interval_per_channel[c]
             J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
-            J[:, :, offs[-1] + c] = -RS[:, :, c] / s[c]
+            J[:, :, sc + c] = -RS[:, :, c] / s[c]
+        J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
         Jf = J.reshape(-1, p)
         ef = e.reshape(-1)
         Wf = np.repeat(wts, 3)
@@ -346,8 +362,8 @@ def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_
         # remove the expected product, (1/s^2) sum_i w_i n_i sigma_c^2 dt^2, from score and Hessian
         for c in range(3):
             eiv = float(np.sum(wts * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
-            g[offs[-1] + c] += eiv
-            H[offs[-1] + c, offs[-1] + c] -= eiv
+            g[sc + c] += eiv
+            H[sc + c, sc + c] -= eiv
         step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
         theta = theta + step
         se = np.sqrt(np.abs(np.diag(np.linalg.pinv(H, rcond=1e-12))))
@@ -360,7 +376,7 @@ def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_
     cov = np.linalg.pinv(H, rcond=1e-12)
     return {
         "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
-        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int,
+        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]),
     }
 
 
@@ -528,8 +544,26 @@ def _array_fit(acc, r, w_gyro, dt, sigma_gyro, fit_bias: bool, n_blocks=20, max_
     Hi = np.linalg.pinv(Z.T @ Z, rcond=1e-10)
     blocks = np.array_split(np.arange(ns), n_blocks)
     gs = np.stack([np.einsum("nkp,nk->p", Z3[bk], r0[bk]) for bk in blocks])
-    meat = gs.T @ gs
-    cov = Hi @ meat @ Hi * n_blocks / (n_blocks - 1)
+    cov_s = Hi @ (gs.T @ gs) @ Hi * n_blocks / (n_blocks - 1)
+    # model-based covariance: the residual noise that the gyro's white noise makes through W, per
+    # sample (G_t = d rho_t / d omega), scaled up if the residual has more power than that. The block
+    # sandwich alone is too optimistic when the information comes from a few events (curves).
+    G = np.empty((ns, r0.shape[1], 3))
+    for k in range(3):
+        e = np.zeros(3)
+        e[k] = 1e-6
+        G[:, :, k] = (resid(theta, w_s + e, s2) - r0) / 1e-6
+    ZG = np.einsum("nkp,nkj->npj", Z3, G) * np.sqrt(s2)[None, None, :]
+    meat_m = np.einsum("npj,nqj->pq", ZG, ZG)
+    pred = float(np.sum(G**2 * s2[None, None, :]))
+    ratio = max(1.0, float(np.sum(r0**2)) / max(pred, 1e-300))
+    cov_m = Hi @ meat_m @ Hi * ratio
+    if pred <= 0:
+        cov = cov_s
+    else:
+        dm = np.sqrt(np.maximum(np.diag(cov_m), 1e-300))
+        f = np.sqrt(np.maximum(np.diag(cov_s) / dm**2, 1.0))
+        cov = cov_m * np.outer(f, f)
     return {"theta": theta, "cov": cov, "resid": r0.reshape(ns, N, 3), "blocks": blocks, "k_s": 1, "stride": stride,
             "idx": idx, "wbar": w_s, "corr": corr(s2), "A": A}
 
@@ -741,8 +775,13 @@ def diagnose_attitude(run, positions=None):
         ok = ref_rows
         q0 = q_ref[a0]
 
+        lam = fit["lam"]
+
         def err_of(rates):
-            qi = integrate_rates_np(q0, rates[a0:], dt)
+            r_ = np.concatenate([rates[a0 : a0 + 1], rates[a0:], rates[-1:], rates[-1:]], 0)
+            w0, w1, w2, wm = r_[1:-2], r_[2:-1], r_[3:], r_[:-3]
+            step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
+            qi = integrate_rates_np(q0, step, dt)
             return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
 
         e_before = err_of(w)

@@ -1,0 +1,240 @@
+"""Attitude-run diagnosis: hidden causes in generated runs, clean runs, bad input.
+
+Seeds, magnitudes and motions here differ from those used while developing the methods
+(seeds 5-11, arw 3e-4, bias 1-2e-3, scale 1.02, rrw 2e-4, 500 Hz, 60-120 s).
+"""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from jaxdrift._attgen import DEFAULT_POSITIONS, make_attitude_run, write_attitude_csv
+from jaxdrift._diagnose_attitude import run_attitude_diagnosis
+from jaxdrift.cli import UsageError
+
+SYSTEMATIC = {"gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid"}
+
+
+def _inside(f, true):
+    lo, hi = np.asarray(f["interval"][0], float), np.asarray(f["interval"][1], float)
+    return bool(np.all((lo <= np.asarray(true)) & (np.asarray(true) <= hi)))
+
+
+def _diag(tmp_path, seed, **kw):
+    tr = make_attitude_run(str(tmp_path), seed, name=f"run{seed}", **kw)
+    rep = run_attitude_diagnosis(tr["paths"]["run"], tr["paths"]["sensors"], None)
+    json.dumps(rep)  # serialisable
+    return tr, rep
+
+
+def _check_schema(rep):
+    assert rep["schema"] == "jaxdrift.diagnosis/1"
+    assert rep["kind"] == "attitude"
+    for k in ("simulation_error", "findings", "extended_model", "gain"):
+        assert k in rep
+    assert set(rep["extended_model"]["corrections"]) >= {"wx", "wy", "wz"}
+    for f in rep["findings"]:
+        assert {"cause", "estimate", "unit", "interval", "evidence"} <= set(f)
+
+
+GYRO = dict(duration=40.0, rate_hz=200.0)
+
+
+def test_noise_only_run_reports_noise_first_with_true_value(tmp_path):
+    arw = 7e-4
+    tr, rep = _diag(tmp_path, 101, arw=arw, **GYRO)
+    _check_schema(rep)
+    causes = [f["cause"] for f in rep["findings"]]
+    assert causes == ["gyro_noise"], causes
+    assert _inside(rep["findings"][0], arw)
+    # the run has a full reference: departure reported, and the corrections do not make it worse
+    assert rep["simulation_error"]["attitude"]["rms"] > 0
+    assert rep["gain"]["after"] <= rep["gain"]["before"] * 1.05
+
+
+def test_clean_run_reports_none(tmp_path):
+    tr, rep = _diag(tmp_path, 102, **GYRO)
+    assert rep["findings"][0]["cause"] == "none"
+    assert len(rep["findings"]) == 1
+
+
+@pytest.mark.parametrize(
+    "seed, kw, cause, channel, true",
+    [
+        (103, dict(bias=(0.0, 0.0, -1.5e-3)), "gyro_bias", "wz", -1.5e-3),
+        (104, dict(bias=(7e-4, 0.0, 0.0)), "gyro_bias", "wx", 7e-4),
+        (105, dict(scale=(1.0, 1.0, 0.97), curve_rate=0.25), "gyro_scale", "wz", 0.97),
+        (106, dict(scale=(1.0, 1.04, 1.0), road_rms_deg=1.0), "gyro_scale", "wy", 1.04),
+        (107, dict(rrw=(0.0, 6e-4, 0.0)), "gyro_bias_drift", "wy", 6e-4),
+    ],
+)
+def test_hidden_gyro_cause_is_first_with_true_value_inside(tmp_path, seed, kw, cause, channel, true):
+    arw = 5e-4
+    tr, rep = _diag(tmp_path, seed, arw=arw, **GYRO, **kw)
+    first = rep["findings"][0]
+    assert (first["cause"], first.get("channel")) == (cause, channel), rep["findings"]
+    assert _inside(first, true), first
+    # the noise finding comes after the systematic one, with the true value inside
+    noise = [f for f in rep["findings"] if f["cause"] == "gyro_noise"]
+    assert len(noise) == 1 and _inside(noise[0], arw)
+    assert rep["gain"]["after"] < rep["gain"]["before"]
+
+
+def test_two_causes_at_once(tmp_path):
+    tr, rep = _diag(tmp_path, 108, arw=4e-4, bias=(-8e-4, 0.0, 0.0), scale=(1.0, 1.0, 1.03), **GYRO)
+    top = {(f["cause"], f.get("channel")): f for f in rep["findings"][:2]}
+    assert set(top) == {("gyro_bias", "wx"), ("gyro_scale", "wz")}, rep["findings"]
+    assert _inside(top[("gyro_bias", "wx")], -8e-4)
+    assert _inside(top[("gyro_scale", "wz")], 1.03)
+    assert rep["findings"][2]["cause"] == "gyro_noise"
+    corr = rep["extended_model"]["corrections"]
+    assert corr["wx"]["bias"] == top[("gyro_bias", "wx")]["estimate"]
+    assert corr["wz"]["scale"] == top[("gyro_scale", "wz")]["estimate"]
+    assert corr["wy"] == {"bias": 0.0, "scale": 1.0}
+
+
+def test_sparse_reference_rows(tmp_path):
+    tr, rep = _diag(tmp_path, 109, arw=5e-4, bias=(0.0, 9e-4, 0.0), reference=25, **GYRO)
+    first = rep["findings"][0]
+    assert (first["cause"], first["channel"]) == ("gyro_bias", "wy") and _inside(first, 9e-4)
+
+
+def test_static_segment_gives_bias_without_reference(tmp_path):
+    tr, rep = _diag(tmp_path, 110, arw=5e-4, bias=(0.0, 0.0, 1.2e-3), reference=None, static_s=8.0, **GYRO)
+    first = rep["findings"][0]
+    assert (first["cause"], first["channel"]) == ("gyro_bias", "wz") and _inside(first, 1.2e-3)
+    not_obs = " ".join(rep["observability"]["not_observed"])
+    assert "scale" in not_obs and "drift" in not_obs
+
+
+def test_no_bias_source_says_so(tmp_path):
+    tr, rep = _diag(tmp_path, 111, arw=5e-4, bias=(1e-3, 0.0, 0.0), reference=None, **GYRO)
+    assert [f["cause"] for f in rep["findings"]] == ["gyro_noise"]
+    assert any("gyro bias" in s for s in rep["observability"]["not_observed"])
+
+
+ARRAY = dict(duration=30.0, rate_hz=200.0, positions=DEFAULT_POSITIONS)
+
+
+def test_array_sensor_position(tmp_path):
+    d = [-0.04, 0.0, 0.03]
+    tr, rep = _diag(tmp_path, 112, arw=4e-4, position_error={4: d}, **ARRAY)
+    first = rep["findings"][0]
+    assert (first["cause"], first["sensor"]) == ("sensor_position", 4), rep["findings"]
+    assert _inside(first, d), first
+    assert rep["extended_model"]["corrections"]["sensor4"]["position"] == pytest.approx(d, abs=0.01)
+
+
+def test_array_nonrigid_and_clean(tmp_path):
+    tr, rep = _diag(tmp_path, 113, arw=4e-4, nonrigid_rms=0.08, **ARRAY)
+    first = rep["findings"][0]
+    assert first["cause"] == "nonrigid", rep["findings"]
+    assert _inside(first, tr["nonrigid_actual_rms"])
+    tr, rep = _diag(tmp_path, 114, arw=4e-4, **ARRAY)
+    assert [f["cause"] for f in rep["findings"]] == ["gyro_noise"], rep["findings"]
+
+
+def test_array_gives_bias_without_reference(tmp_path):
+    tr, rep = _diag(tmp_path, 115, arw=4e-4, bias=(0.0, -2e-3, 0.0), reference=None, **ARRAY)
+    first = rep["findings"][0]
+    assert (first["cause"], first["channel"]) == ("gyro_bias", "wy"), rep["findings"]
+    assert _inside(first, -2e-3)
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+@pytest.fixture
+def good_run(tmp_path):
+    tr = make_attitude_run(str(tmp_path), 120, duration=2.0, rate_hz=100.0, arw=1e-3, positions=DEFAULT_POSITIONS)
+    return tr
+
+
+def _rewrite(path, fn):
+    with open(path) as fh:
+        lines = fh.read().splitlines()
+    lines = fn(lines)
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+
+
+def _refused(run, sensors, tmp_path, *needles):
+    plots = os.path.join(str(tmp_path), "plots_should_not_exist")
+    with pytest.raises(UsageError) as ei:
+        run_attitude_diagnosis(run, sensors, plots)
+    msg = str(ei.value)
+    for n in needles:
+        assert n in msg, msg
+    assert not os.path.exists(plots)
+    return msg
+
+
+def test_refuses_non_uniform_time(good_run, tmp_path):
+    p = good_run["paths"]["run"]
+
+    def fn(lines):
+        cells = lines[30].split(",")
+        cells[0] = repr(float(cells[0]) + 0.003)
+        lines[30] = ",".join(cells)
+        return lines
+
+    _rewrite(p, fn)
+    _refused(p, good_run["paths"]["sensors"], tmp_path, os.path.basename(p), "row 3", "column t", "non-uniform")
+
+
+def test_refuses_nan_row(good_run, tmp_path):
+    p = good_run["paths"]["run"]
+
+    def fn(lines):
+        cells = lines[12].split(",")
+        cells[2] = "nan"
+        lines[12] = ",".join(cells)
+        return lines
+
+    _rewrite(p, fn)
+    _refused(p, good_run["paths"]["sensors"], tmp_path, "row 13", "column wy")
+
+
+def test_refuses_quaternion_far_from_unit(good_run, tmp_path):
+    p = good_run["paths"]["run"]
+
+    def fn(lines):
+        hdr = lines[0].split(",")
+        j = hdr.index("qw")
+        cells = lines[7].split(",")
+        cells[j] = repr(float(cells[j]) * 1.2 + 0.1)
+        lines[7] = ",".join(cells)
+        return lines
+
+    _rewrite(p, fn)
+    _refused(p, good_run["paths"]["sensors"], tmp_path, "row 8", "norm")
+
+
+@pytest.mark.parametrize(
+    "positions, needle",
+    [
+        ([[1, 0, 0], [0, 1, 0], [0, 0, 1]], "at least 4"),
+        ([[0, 0, 0], [1, 0, 0], [2, 0, 0], [3, 0, 0]], "collinear"),
+        ([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [2, 3, 0]], "coplanar"),
+    ],
+)
+def test_refuses_bad_sensor_geometry(tmp_path, positions, needle):
+    n = 50
+    t = np.arange(n) * 0.01
+    w = np.zeros((n, 3))
+    acc = np.zeros((n, len(positions), 3))
+    run = os.path.join(str(tmp_path), "r.csv")
+    write_attitude_csv(run, t, w, None, acc)
+    sens = os.path.join(str(tmp_path), "s.json")
+    with open(sens, "w") as fh:
+        json.dump({"positions": positions}, fh)
+    _refused(run, sens, tmp_path, "s.json", needle)
+
+
+def test_refuses_missing_column_and_missing_sensors(tmp_path, good_run):
+    p = good_run["paths"]["run"]
+    _refused(p, None, tmp_path, "--sensors")
+    _rewrite(p, lambda lines: [",".join(c for c in ln.split(",")[:3]) for ln in lines])
+    _refused(p, None, tmp_path, "column wz")
