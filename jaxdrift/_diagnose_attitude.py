@@ -735,11 +735,10 @@ def diagnose_attitude(run, positions=None):
         for c in range(3):
             ch = CHANNELS[c]
             s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
-            scale[c] = s_hat
             if s_se > 0.05:
                 not_observed.append(f"scale of {ch} (too little rotation about it: SE {_fmt(s_se)})")
-                scale[c] = 1.0
             elif abs(s_hat - 1) / max(s_se, 1e-300) > Z_SIGNIFICANT:
+                scale[c] = s_hat
                 findings.append(_finding(
                     "gyro_scale", float(s_hat), "ratio", [float(s_hat - z95 * s_se), float(s_hat + z95 * s_se)],
                     f"rotation about {ch} between reference rows is {_fmt(s_hat)} times the gyro's "
@@ -756,18 +755,18 @@ def diagnose_attitude(run, positions=None):
                     f"{_fmt(d['lr'])} against a constant bias)",
                     math.sqrt(max(d["lr"], 0.0)), channel=ch))
                 bias_path[:, c] = th[sl][seg_final[c][rows_int]]
-                b_est = b0
+                corrections[ch]["bias_drift"] = float(d["K"])
             else:
                 b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
-                bias_path[:, c] = b0
-                b_est = b0
             if abs(b0) / max(b0_se, 1e-300) > Z_SIGNIFICANT:
+                corrections[ch]["bias"] = float(b0)
+                if c not in drift:
+                    bias_path[:, c] = b0
                 findings.append(_finding(
                     "gyro_bias", float(b0), "rad/s", [float(b0 - z95 * b0_se), float(b0 + z95 * b0_se)],
                     f"integrated {ch} departs from the reference like a constant rate error of {_fmt(b0)} rad/s "
                     f"(z = {_fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
                     abs(b0) / b0_se, channel=ch))
-            corrections[ch]["bias"] = float(b_est)
         if infl > 1.5:
             notes.append(f"reference residuals are {_fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
         # simulation error and gain: integrate from the first reference row
