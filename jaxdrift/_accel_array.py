@@ -7,11 +7,11 @@ Sensor ``i`` at body position ``r_i`` measures, after the sensor's own gravity c
 The six steps of the seed's summary (:func:`reconstruct`):
 
 1. ``M_- = (M - M^T) / 2`` (the angular acceleration ``omega~'``),
-2. ``omega_l`` by integrating ``M_-`` (trapezoidal rule), optionally high-pass filtered (remark 2),
+2. ``omega_l`` by integrating ``M_-`` (cubic step averages, 4th order), optionally high-pass filtered (remark 2),
 3. ``q`` by integrating ``q' = 0.5 Omega_l q`` (exponential map of the step-averaged rate),
    optionally high-pass filtering the Cardan angles afterwards (remark 2),
 4. ``S = S(q)`` (3.7),
-5. ``x_C''`` by the average (3.9), ``x_C`` by two trapezoidal integrations,
+5. ``x_C''`` by the average (3.9), ``x_C`` by two integrations (same rule),
 6. ``x_i = x_C + S r_i`` (3.1).
 
 ``M_+ - omega~ omega~`` (the consistency condition of (3.6)) is returned as a rigidity and
@@ -106,10 +106,22 @@ def _highpass(x, dt, cutoff, order=2):
     return sosfiltfilt(sos, x, axis=0)
 
 
-def _cumtrapz(y, dt, y0):
+def _step_average(y):
+    """Average of the cubic interpolant of the samples over each step [t_k, t_k+1]: (n-1, ...).
+
+    ``(-y_{k-1} + 13 y_k + 13 y_{k+1} - y_{k+2}) / 24`` (fourth order; the trapezoidal rule at the ends).
+    """
+    avg = 0.5 * (y[1:] + y[:-1])
+    if len(y) >= 4:
+        avg[1:-1] = (-y[:-3] + 13 * y[1:-2] + 13 * y[2:-1] - y[3:]) / 24.0
+    return avg
+
+
+def _cumint(y, dt, y0):
+    """Cumulative integral of samples ``y`` from ``y0`` with the step averages of :func:`_step_average`."""
     out = np.empty_like(y)
     out[0] = y0
-    out[1:] = y0 + np.cumsum(0.5 * (y[1:] + y[:-1]) * dt, 0)
+    out[1:] = y0 + np.cumsum(_step_average(y) * dt, 0)
     return out
 
 
@@ -134,11 +146,11 @@ def reconstruct(acc, positions, dt, *, q0=(1.0, 0.0, 0.0, 0.0), omega0=(0.0, 0.0
     M = m_matrix(acc, r)  # step 1
     Mm = 0.5 * (M - np.swapaxes(M, 1, 2))
     Mp = 0.5 * (M + np.swapaxes(M, 1, 2))
-    omega = _cumtrapz(_vee(Mm), dt, np.asarray(omega0, float))  # step 2
+    omega = _cumint(_vee(Mm), dt, np.asarray(omega0, float))  # step 2
     if highpass_omega:
         omega = _highpass(omega, dt, highpass_omega)
-    # step 3: exponential map of the step-averaged rate (second order, keeps |q| = 1)
-    w_step = np.concatenate([0.5 * (omega[1:] + omega[:-1]), omega[-1:]], 0)
+    # step 3: exponential map of the step-averaged rate (keeps |q| = 1)
+    w_step = np.concatenate([_step_average(omega), omega[-1:]], 0)
     q = integrate_rates_np(np.asarray(q0, float), w_step, dt)
     angles = quat_to_euler_np(q)
     if highpass_angles:
@@ -151,8 +163,8 @@ def reconstruct(acc, positions, dt, *, q0=(1.0, 0.0, 0.0, 0.0), omega0=(0.0, 0.0
     xdd = np.mean(np.einsum("nab,nkb->nka", S, acc - g * E3) + g * E3 - np.einsum("nab,nbc,kc->nka", S, M, r), axis=1)
     if highpass_position:
         xdd = _highpass(xdd, dt, highpass_position)
-    v = _cumtrapz(xdd, dt, np.asarray(v0, float))
-    xc = _cumtrapz(v, dt, np.asarray(x0, float))
+    v = _cumint(xdd, dt, np.asarray(v0, float))
+    xc = _cumint(v, dt, np.asarray(x0, float))
     x_sensors = xc[:, None, :] + np.einsum("nab,kb->nka", S, r)  # step 6
     cons = consistency_residual(Mp, omega)
     return {"omega": omega, "q": q, "S": S, "angles": angles, "xc": xc, "x_sensors": x_sensors,
