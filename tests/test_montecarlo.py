@@ -18,6 +18,7 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
+from jaxdrift import SampledSignal, solve_ode
 from jaxdrift._montecarlo import monte_carlo
 from jaxdrift._noise import path_normals
 
@@ -372,9 +373,8 @@ def test_bad_arguments():
     with pytest.raises(TypeError, match="integer scalar result code"):
         monte_carlo(lambda k, i, m: (toy_path(k, i, m)[0], 0.0), 4, key=KEY, save_ts=SAVE_TS,
                     progress=False)
-    with pytest.raises(ValueError, match="key"):
-        run(4, key=jax.random.split(KEY, 2)) if False else monte_carlo(
-            toy_path, 4, key=jax.random.split(KEY, 2), save_ts=SAVE_TS, progress=False)
+    with pytest.raises(ValueError, match="key must be a single PRNG key"):
+        monte_carlo(toy_path, 4, key=jax.random.split(KEY, 2), save_ts=SAVE_TS, progress=False)
 
 
 # --- a real ODE path: jaxdrift.solve_ode driven by a noisy sampled input -------------------------
@@ -396,8 +396,6 @@ def input_samples(key, path_index, model):
 
 def ode_path(key, path_index, model):
     """y' = -k y + u(t), y(0) = 0, u the noisy input linearly interpolated between samples."""
-    from jaxdrift import SampledSignal, solve_ode
-
     u = SampledSignal(0.0, H, input_samples(key, path_index, model), kind="linear")
     sol = solve_ode(lambda t, y, args: -model.k * y + u(t), jnp.zeros(1), 0.0, 1.0,
                     saveat=jnp.asarray(ODE_TS), dt=H)
