@@ -37,6 +37,30 @@ from ._params import (
     random_perturbed_models,
     stack_models,
 )
+from ._pointmass import (
+    pointmass_monte_carlo,
+    pointmass_path,
+    pointmass_rhs,
+    pointmass_variance,
+    run_pointmass_study,
+)
+from ._road import ISO8608_GD0, RoadProfile, WheelInputs, iso8608_psd, iso8608_road, iso8608_variance
+from ._study import (
+    SOLVER_FIXED,
+    SOLVER_LOOSE,
+    SOLVER_TIGHT,
+    SolverSpec,
+    StudyConfig,
+    VirtualMeasurement,
+    drift_off_time,
+    run_force_paths,
+    run_paper_study,
+    run_pitch_paths,
+    simulate_forces,
+    simulate_prescribed_pitch,
+    virtual_measurement,
+    write_paper_outputs,
+)
 
 # --- variance (#4) ---
 from ._fast import solve_fixed_fast
