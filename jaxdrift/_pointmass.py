@@ -61,7 +61,12 @@ def pointmass_variance(t, sigma_m, dt, params: PointMassParams):
     if eta == 0.0:
         return s2 * t**3 / (3 * m**2), s2 * t / m**2
     e1, e2 = -np.expm1(-eta * t), -np.expm1(-2 * eta * t)  # 1 - e^{-eta t}, 1 - e^{-2 eta t}
-    var_x = s2 / (eta**2 * m**2) * (t + e2 / (2 * eta) - 2 * e1 / eta)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        var_x = s2 / (eta**2 * m**2) * (t + e2 / (2 * eta) - 2 * e1 / eta)
+    # for eta t << 1 the bracket cancels catastrophically: use the series of
+    # int_0^t ((1 - e^{-eta u}) / eta)^2 du = t^3/3 - eta t^4/4 + 7 eta^2 t^5/60 + O(eta^3 t^6)
+    series = s2 / m**2 * (t**3 / 3 - eta * t**4 / 4 + 7 * eta**2 * t**5 / 60)
+    var_x = np.where(eta * t < 1e-3, series, var_x)
     var_v = s2 / (2 * eta * m**2) * e2
     return var_x, var_v
 
