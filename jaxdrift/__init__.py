@@ -81,3 +81,17 @@ from ._variance import (
 # --- diagnosis (#5) ---
 
 # --- attitude (#6) ---
+from ._accel_array import check_positions, consistency_residual, reconstruct as reconstruct_from_accelerometers, simulate_array
+from ._diagnose_attitude import run_attitude_diagnosis
+from ._ins import gyro_errors, vehicle_motion
+from ._quaternion import (
+    B_MATRICES,
+    angle_error_std,
+    euler_step,
+    expmap_step,
+    integrate_rates,
+    ito_norm_growth,
+    omega_matrix,
+    quaternion_sde_paths,
+    rotation_matrix,
+)

@@ -103,7 +103,10 @@ def _highpass(x, dt, cutoff, order=2):
     from scipy.signal import butter, sosfiltfilt
 
     sos = butter(order, cutoff, btype="highpass", fs=1.0 / dt, output="sos")
-    return sosfiltfilt(sos, x, axis=0)
+    # even (mirror) padding over three time constants: no artificial jump at the ends, so a cut-off
+    # far below 1/duration tends to removing the mean rather than to an edge transient
+    padlen = int(min(x.shape[0] - 1, 3.0 / (cutoff * dt)))
+    return sosfiltfilt(sos, x, axis=0, padtype="even", padlen=padlen)
 
 
 def _step_average(y):
