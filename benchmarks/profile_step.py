@@ -1,0 +1,117 @@
+"""Where the time of a half-car step goes: the model's vector field against the integrator.
+
+Measures, per path, the cost of one evaluation of ``force_driven_rhs`` (the nonlinear model and
+its ``linear=True`` form, float32 and float64) in the layout ``vmap`` produces (state ``(paths,
+10)``) and with the batch on the last axis (state ``(10, paths)``), and the cost of a whole fixed
+1 ms DOPRI5 step (6 evaluations) of ``jaxdrift.solve_ode`` and of the fast mode, with the same
+noisy sampled forces. Writes ``benchmarks/results/profile_step.json``.
+
+Reproduce (about 3 minutes on 2 cores)::
+
+    python benchmarks/profile_step.py
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+
+def _best(fn, *args, repeats=3):
+    import jax
+
+    jax.block_until_ready(fn(*args))
+    best = float("inf")
+    for _ in range(repeats):
+        t = time.perf_counter()
+        jax.block_until_ready(fn(*args))
+        best = min(best, time.perf_counter() - t)
+    return best
+
+
+def main():
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    import jax.numpy as jnp
+
+    import jaxdrift
+    from _setup import force_rhs
+    from jaxdrift._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
+    from jaxdrift._params import HalfCarParams
+
+    p = HalfCarParams()
+    n_paths, K = 1024, 2000
+    out = {"paths": n_paths, "load_average_at_start": list(os.getloadavg()), "rhs_ns_per_path": {}, "step_ns_per_path": {}}
+    for dtype in (jnp.float32, jnp.float64):
+        dn = jnp.dtype(dtype).name
+        for linear in (False, True):
+            for layout in ("vmap (paths, 10)", "batch-last (10, paths)"):
+                x0 = jnp.asarray(static_equilibrium(p), dtype)
+                if layout.startswith("vmap"):
+                    x = jnp.broadcast_to(x0, (n_paths, 10))
+                    f = jnp.full((n_paths, 2), 3700.0, dtype)
+
+                    def ev(x, f, linear=linear):
+                        return jax.vmap(lambda x, f: force_driven_rhs(0.0, x, p, f[0], f[1], linear=linear))(x, f)
+                else:
+                    x = jnp.broadcast_to(x0[:, None], (10, n_paths))
+                    f = jnp.full((2, n_paths), 3700.0, dtype)
+
+                    def ev(x, f, linear=linear):
+                        return force_driven_rhs(0.0, x, p, f[0], f[1], linear=linear)
+
+                def loop(x, f, ev=ev):
+                    return jax.lax.scan(lambda x, _: (x + 1e-9 * ev(x, f), None), x, None, length=K)[0]
+
+                t = _best(jax.jit(loop), x, f)
+                key = f"{dn}, {'linear' if linear else 'nonlinear'}, {layout}"
+                out["rhs_ns_per_path"][key] = t / (n_paths * K) * 1e9
+                print(key, f"{out['rhs_ns_per_path'][key]:.1f} ns", flush=True)
+        xs = jnp.linspace(-0.5, 0.5, n_paths * 16, dtype=dtype)
+        for name, fn in (("sin", jnp.sin), ("cos", jnp.cos), ("multiply-add", lambda v: v * 1.0001 + 0.5)):
+            g = jax.jit(lambda v, fn=fn: jax.lax.scan(lambda c, _: (fn(c) * 0.5, None), v, None, length=64)[0])
+            out["rhs_ns_per_path"][f"{dn}, {name} of one element"] = _best(g, xs) / (xs.size * 64) * 1e9
+
+    rhs = force_rhs(p)
+    T, dt = 2.0, 1e-3
+    n = int(round(T / dt)) + 1
+    f1, f2, _, _ = equilibrium_forces(p)
+    f0 = jnp.ones((n, 2)) * jnp.array([f1, f2])
+    x0 = static_equilibrium(p)
+    ts = jnp.arange(0, int(T * 10) + 1) / 10.0
+    key = jax.random.key(0)
+    n_steps = n - 1
+
+    def make(kind, dtype):
+        def path(i):
+            sig = jaxdrift.SampledSignal(0.0, dt, (f0 + 32.0 * jaxdrift.path_normals(key, i, n, 2, dtype)).astype(dtype))
+            if kind == "engine":
+                return jaxdrift.solve_ode(rhs, x0, 0.0, T, saveat=ts, args=sig, dt=dt).ys
+            if kind == "noise only":
+                return sig.values
+            return jaxdrift.solve_fixed_fast(rhs, x0, 0.0, T, saveat=ts, args=sig, dt=dt, dtype=dtype).ys
+
+        return jax.jit(jax.vmap(path))
+
+    idx = jnp.arange(512)
+    for kind, dtype in (("engine", jnp.float64), ("fast", jnp.float32), ("fast", jnp.float64),
+                        ("noise only", jnp.float64), ("noise only", jnp.float32)):
+        name = f"{kind} {jnp.dtype(dtype).name}"
+        out["step_ns_per_path"][name] = _best(make(kind, dtype), idx, repeats=2) / (idx.size * n_steps) * 1e9
+        print(name, f"{out['step_ns_per_path'][name]:.0f} ns per path-step", flush=True)
+    out["load_average_at_end"] = list(os.getloadavg())
+    path = HERE / "results" / "profile_step.json"
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(out, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
