@@ -659,7 +659,10 @@ def diagnose_attitude(run, positions=None):
     wn = estimate_white_noise(w, dt)
     var_pooled = float(np.mean(wn["var"]))
     var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
-    floor = max(3.0 * run["quantisation"], 1e-9 * float(np.sqrt(np.mean(w**2))), 1e-15)
+    # below this a "noise" is rounding or numerical differentiation, not a gyro: three times the
+    # quantisation of the file's digits, or 1e-6 of the RMS rate (navigation-grade gyros at 1 kHz
+    # are near 2e-5 rad/s per sample, far above)
+    floor = max(3.0 * run["quantisation"], 1e-6 * float(np.sqrt(np.mean(w**2))), 1e-15)
     noise_found = wn["plateau"] and math.sqrt(var_pooled) > floor
     sigma_axis = wn["sigma"] if noise_found else np.zeros(3)
     N_hat = math.sqrt(var_pooled * dt) if noise_found else 0.0

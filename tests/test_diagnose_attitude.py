@@ -238,3 +238,40 @@ def test_refuses_missing_column_and_missing_sensors(tmp_path, good_run):
     _refused(p, None, tmp_path, "--sensors")
     _rewrite(p, lambda lines: [",".join(c for c in ln.split(",")[:3]) for ln in lines])
     _refused(p, None, tmp_path, "column wz")
+
+
+# ----------------------------------------------------------------------------- through the CLI
+
+
+def test_cli_diagnose_writes_report_or_nothing(tmp_path):
+    from jaxdrift.cli import main
+
+    tr = make_attitude_run(str(tmp_path), 121, duration=20.0, rate_hz=200.0, arw=5e-4, bias=(0.0, 0.0, 2e-3))
+    out = os.path.join(str(tmp_path), "report.json")
+    assert main(["diagnose", tr["paths"]["run"], "--json", out]) == 0
+    with open(out) as fh:
+        rep = json.load(fh)
+    assert rep["kind"] == "attitude" and rep["findings"][0]["cause"] == "gyro_bias"
+    # bad input: exit 2, no report
+    bad = os.path.join(str(tmp_path), "bad.csv")
+    with open(tr["paths"]["run"]) as fh:
+        lines = fh.read().splitlines()
+    lines[5] = lines[5].replace(lines[5].split(",")[1], "", 1)
+    with open(bad, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+    out2 = os.path.join(str(tmp_path), "report2.json")
+    assert main(["diagnose", bad, "--json", out2]) == 2
+    assert not os.path.exists(out2)
+
+
+def test_cli_accel_array_small(tmp_path):
+    from jaxdrift.cli import main
+
+    out = os.path.join(str(tmp_path), "aa")
+    assert main(["accel-array", "--out", out, "--duration", "6", "--paths", "10"]) == 0
+    with open(os.path.join(out, "accel_summary.json")) as fh:
+        s = json.load(fh)
+    assert s["noise_free"]["max_attitude_error_rad"] < 1e-3
+    assert {"accel_reconstruction.png", "accel_noise_growth.png", "accel_highpass.png"} <= set(os.listdir(out))
+    assert main(["accel-array", "--out", os.path.join(str(tmp_path), "x"), "--noise", "-1"]) == 2
+    assert not os.path.exists(os.path.join(str(tmp_path), "x"))
