@@ -206,28 +206,40 @@ def virtual_measurement(
     callable/Module). The model starts from its static equilibrium on level ground.
     """
     params.validate()
+    if not (np.isfinite(duration) and duration > 0 and np.isfinite(sample_rate) and sample_rate > 0):
+        raise ValueError(f"virtual_measurement: need duration > 0 and sample_rate > 0, got {duration}, {sample_rate}")
     n = _n_samples(duration, sample_rate)
     ts = jnp.arange(n) / sample_rate
+    t_end = getattr(inputs, "t1", None)
+    if t_end is not None and float(t_end) < float(ts[-1]) - 1e-9:
+        raise ValueError(
+            f"virtual_measurement: the road inputs end at t = {float(t_end):g} s, before the "
+            f"{duration:g} s run (mismatched lengths)"
+        )
 
-    def f(t, x, args):
-        p, inp = args
-        z, dz = inp(t)
-        return road_driven_rhs(t, x, p, z, dz)
-
-    @jax.jit
-    def run(p, inp):
-        z0, _ = inp(jnp.asarray(0.0))
-        x0 = static_equilibrium(p, "road", zeta=(z0[0], z0[1]))
-        sol = solve_ode(f, x0, 0.0, ts[-1], saveat=ts, args=(p, inp), rtol=rtol, atol=atol, max_steps=10_000_000)
-        z, dz = jax.vmap(inp)(ts)
-        forces = jax.vmap(lambda x, a, b: contact_forces(x, p, a, b))(sol.ys, z, dz)
-        dd = jax.vmap(lambda t, x, a, b: road_driven_rhs(t, x, p, a, b)[7])(ts, sol.ys, z, dz)
-        return sol.ys, z, dz, forces, dd, sol.result
-
-    ys, z, dz, forces, dd, result = run(params, inputs)
+    ys, z, dz, forces, dd, result = _measure(params, inputs, ts, float(rtol), float(atol))
     if int(result) != 0:
         raise RuntimeError(f"virtual measurement failed: solver result code {int(result)}")
     return VirtualMeasurement(ts=ts, x=ys, zeta=z, dzeta=dz, forces=forces, ddbeta=dd)
+
+
+def _road_vf(t, x, args):
+    p, inp = args
+    z, dz = inp(t)
+    return road_driven_rhs(t, x, p, z, dz)
+
+
+@eqx.filter_jit
+def _measure(p, inp, ts, rtol, atol):
+    # module-level and filter-jitted: repeated measurements with the same shapes compile once
+    z0, _ = inp(jnp.asarray(0.0, ts.dtype))
+    x0 = static_equilibrium(p, "road", zeta=(z0[0], z0[1]))
+    sol = solve_ode(_road_vf, x0, ts[0], ts[-1], saveat=ts, args=(p, inp), rtol=rtol, atol=atol,
+                    max_steps=10_000_000)
+    z, dz = jax.vmap(inp)(ts)
+    forces = jax.vmap(lambda x, a, b: contact_forces(x, p, a, b))(sol.ys, z, dz)
+    dd = jax.vmap(lambda t, x, a, b: road_driven_rhs(t, x, p, a, b)[7])(ts, sol.ys, z, dz)
+    return sol.ys, z, dz, forces, dd, sol.result
 
 
 # ---------------------------------------------------------------------------------------------
@@ -237,6 +249,12 @@ def _force_vf(t, x, args):
     p, sig, spring = args
     f = sig(t)
     return force_driven_rhs(t, x, p, f[0], f[1], pitch_spring=spring)
+
+
+def _check_signal(name, sig, channels):
+    shape = getattr(getattr(sig, "values", None), "shape", None)
+    if shape is None or len(shape) != 2 or shape[1] != channels:
+        raise ValueError(f"{name} must be a SampledSignal with {channels} channels, got values of shape {shape}")
 
 
 def _span(save_ts, t_span):
@@ -255,6 +273,7 @@ def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec =
     the concrete ``t_span=(t0, t1)``. ``pitch_spring=(k, d)`` adds the section-3 rotational
     spring-damper.
     """
+    _check_signal("forces", forces, 2)
     t0, t1 = _span(save_ts, t_span)
     if x0 is None:
         x0 = static_equilibrium(params, "force")
@@ -279,6 +298,8 @@ def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSigna
     ``lambda = I beta'' - cos(beta)(b f3 - a f4)`` and the inertia term ``I beta''`` at ``save_ts``.
     The initial state is the static equilibrium at the prescribed initial pitch.
     """
+    _check_signal("forces", forces, 2)
+    _check_signal("pitch", pitch, 3)
     t0, t1 = _span(save_ts, t_span)
     save_ts = jnp.asarray(save_ts)
     x0 = static_equilibrium(params, "pitch")
@@ -359,6 +380,10 @@ def run_force_paths(vm, save_ts, models, sigmas, springs=None, solver=SOLVER_LOO
     """
     n = len(models)
     springs = [(0.0, 0.0)] * n if springs is None else springs
+    if len(sigmas) != n or len(springs) != n:
+        raise ValueError(f"run_force_paths: {n} models but {len(sigmas)} sigmas and {len(springs)} springs")
+    if n == 0:
+        raise ValueError("run_force_paths: no paths")
     batch = _batch(models, sigmas, [s[0] for s in springs], [s[1] for s in springs])
     fn = _ForcePath(forces=vm.forces, t0=vm.ts[0], dt=jnp.asarray(vm.dt), save_ts=jnp.asarray(save_ts),
                     solver=solver, span=_span(save_ts, None))
@@ -369,6 +394,8 @@ def run_force_paths(vm, save_ts, models, sigmas, springs=None, solver=SOLVER_LOO
 def run_pitch_paths(vm, save_ts, models, sigmas, solver=SOLVER_LOOSE, seed=0, progress=True):
     """Run stabilised paths (A.5) with the measured pitch prescribed: outputs ``[z3, lambda, I beta'']``."""
     n = len(models)
+    if len(sigmas) != n or n == 0:
+        raise ValueError(f"run_pitch_paths: {n} models but {len(sigmas)} sigmas")
     pitch = jnp.stack([vm.x[:, 3], vm.x[:, 7], vm.ddbeta], axis=1)
     fn = _PitchPath(forces=vm.forces, pitch=pitch, t0=vm.ts[0], dt=jnp.asarray(vm.dt),
                     save_ts=jnp.asarray(save_ts), solver=solver, span=_span(save_ts, None))

@@ -346,8 +346,8 @@ def test_force_mode_driven_by_road_contact_forces_reproduces_road_motion():
     def fr(t, x):
         return np.asarray(road_rhs(t, x))
 
-    T = 1.0
-    ts = np.linspace(0, T, 101)
+    T = 0.5
+    ts = np.linspace(0, T, 51)
     tol = dict(method="DOP853", rtol=1e-10, atol=1e-12, dense_output=True)
     road = solve_ivp(fr, (0, T), np.asarray(static_equilibrium(p, "road")), t_eval=ts, **tol)
     assert road.success
