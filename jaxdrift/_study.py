@@ -571,8 +571,18 @@ def _summarise(cfg, vm, save_ts, beta_ref, z3_ref, sigma, fmax, main, kinds, sta
     moment = {k: _range(lam[st_kinds == k]) for k in dict.fromkeys(st_kinds)}
     moment["inertia_term"] = _range(inertia[0])
 
-    # pitch spring
+    # pitch spring (the first row, stiffness 0, is the free model on the same noise samples)
     spring = []
+    n_sp = int(np.count_nonzero(kinds == f"spring_{cfg.pitch_spring_stiffness[0]:g}")) if cfg.pitch_spring_stiffness else 0
+    if n_sp:
+        r = rows("noisy")[:n_sp]
+        e = eb[r]
+        spring.append(dict(
+            stiffness=0.0, damping=0.0,
+            pitch_error_rms_deg=float(np.degrees(np.sqrt(np.mean(e**2)))),
+            pitch_error_max_deg=float(np.degrees(np.max(np.abs(e)))),
+            drift_off_s=_stats(doff(r)), reaction_torque_max=0.0, reaction_torque_rms=0.0,
+        ))
     for k in cfg.pitch_spring_stiffness:
         r = rows(f"spring_{k:g}")
         e = eb[r]
@@ -810,13 +820,17 @@ def _write_all(res, d, dpi, plt):
     save(fig, "fig8_enforced_moment.png")
 
     # pitch spring trade-off
-    sp = s["pitch_spring"]
+    sp = [r for r in s["pitch_spring"] if r["stiffness"] > 0]
+    free = [r for r in s["pitch_spring"] if r["stiffness"] == 0]
     if sp:
         k = np.array([r["stiffness"] for r in sp])
         fig, ax = plt.subplots(1, 1, figsize=(6, 4))
         ax.loglog(k, [r["pitch_error_rms_deg"] for r in sp], "o-", color="C0", label="pitch error RMS [deg]")
         ax.loglog(k, [r["pitch_error_max_deg"] for r in sp], "s--", color="C0", alpha=0.6,
                   label="pitch error max [deg]")
+        if free:
+            ax.axhline(free[0]["pitch_error_rms_deg"], color="C0", lw=0.8, ls=":",
+                       label="pitch error RMS without spring [deg]")
         ax.set_xlabel("rotational spring stiffness [Nm/rad] (critically damped)")
         ax.set_ylabel("pitch error [deg]", color="C0")
         ax2 = ax.twinx()

@@ -9,6 +9,7 @@ import pytest
 from jaxdrift._params import PointMassParams
 from jaxdrift._pointmass import (
     chi2_interval,
+    euler_variance,
     pointmass_monte_carlo,
     pointmass_path,
     pointmass_variance,
@@ -44,6 +45,17 @@ def test_closed_forms_are_the_limit_of_the_euler_recursion(eta):
     assert errs[1][0] < errs[0][0] / 5  # first order in dt
     if eta == 0.0:
         assert errs[1][1] < 1e-12  # Var v is exact on the grid without damping
+
+
+@pytest.mark.parametrize("eta", [0.0, 0.9])
+def test_euler_variance_is_the_recursion(eta):
+    p = PointMassParams(m=1.3, eta=eta)
+    P = _euler_covariance(700, 0.01, 2.0, p.m, eta)
+    vx, vv = euler_variance([0.0, 0.05, 7.0], 2.0, 0.01, p)
+    np.testing.assert_allclose(vx, P[[0, 5, 700], 0, 0], rtol=1e-12)
+    np.testing.assert_allclose(vv, P[[0, 5, 700], 1, 1], rtol=1e-12)
+    with pytest.raises(ValueError, match="grid"):
+        euler_variance([0.005], 2.0, 0.01, p)
 
 
 def test_damped_limits():
