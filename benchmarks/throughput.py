@@ -15,8 +15,8 @@ forces sampled at 1 kHz with white noise (sigma = 0.002 f_max), 30 s, pitch and 
   with its ``PIDController`` (I controller), scipy ``RK45``.
 
 Path-steps per second count each solver's own steps (accepted + rejected); compile time is
-reported separately (first call minus a warm call); each timing is the best of ``--repeats``
-runs on fresh path indices. scipy runs a few paths and is extrapolated linearly (its cost per step
+reported separately (first call minus the best warm call); the cases are timed in ``--repeats``
+interleaved rounds on fresh path indices (so a change of load hits all alike), each keeping its best. scipy runs a few paths and is extrapolated linearly (its cost per step
 does not depend on the number of paths). The memory case (10,000 paths x 60 s at 1 kHz, statistics
 at 0.1 s, through :func:`jaxdrift.monte_carlo`) runs in a subprocess so that its peak RSS is its
 own. Writes ``benchmarks/results/throughput.json`` and ``throughput.md``.
@@ -81,38 +81,9 @@ def _machine():
         "jax_backend": jax.default_backend(),
         "jax_devices": [str(d) for d in jax.devices()],
         "load_average_at_start": list(os.getloadavg()),
+        "gpu_note": "the code runs unchanged on GPU (device-agnostic jax); no GPU was available to the session "
+        "that produced these numbers, so no GPU figures are recorded",
     }
-
-
-def _time_jax(make_fn, n_paths, repeats, steps_of):
-    """Compile time, best run time and path-steps of a jitted ``fn(path_indices)``."""
-    import jax
-    import jax.numpy as jnp
-
-    fn = jax.jit(make_fn())
-    idx = jnp.arange(n_paths, dtype=jnp.int32)
-    t = time.perf_counter()
-    out = fn(idx)
-    jax.block_until_ready(out)
-    first = time.perf_counter() - t
-    best = float("inf")
-    for r in range(repeats):
-        idx_r = idx + (r + 1) * n_paths
-        t = time.perf_counter()
-        out = fn(idx_r)
-        jax.block_until_ready(out)
-        best = min(best, time.perf_counter() - t)
-    ys, steps = out
-    total_steps = float(steps_of(steps))
-    return {
-        "paths": n_paths,
-        "compile_s": max(first - best, 0.0),
-        "run_s": best,
-        "path_steps": total_steps,
-        "steps_per_path": total_steps / n_paths,
-        "path_steps_per_s": total_steps / best,
-        "paths_per_s": n_paths / best,
-    }, ys
 
 
 def _scipy_case(study, n_paths, *, fixed, rtol=1e-6, atol=1e-8, key_seed=0):
@@ -248,15 +219,39 @@ def _jax_cases(study, n_paths, repeats, which):
         "adaptive/jaxdrift": jd_adaptive,
         "adaptive/diffrax": dfx(True),
     }
-    paths = {}
+    # Compile (first call) every case, then time them in interleaved rounds, so that a change of
+    # load on this shared machine hits every case alike; each case keeps its best round.
+    fns, first, outs = {}, {}, {}
+    idx = jnp.arange(n_paths, dtype=jnp.int32)
     for name in which:
         if name not in makers:
             continue
-        print(f"  {name} ...", flush=True)
-        res, ys = _time_jax(makers[name], n_paths, repeats, lambda s: np.sum(np.asarray(s)))
-        out[name] = res
+        print(f"  compiling {name} ...", flush=True)
+        fns[name] = jax.jit(makers[name]())
+        t = time.perf_counter()
+        jax.block_until_ready(fns[name](idx))
+        first[name] = time.perf_counter() - t
+    best = {name: float("inf") for name in fns}
+    for r in range(repeats):
+        idx_r = idx + (r + 1) * n_paths
+        for name, fn in fns.items():
+            t = time.perf_counter()
+            o = fn(idx_r)
+            jax.block_until_ready(o)
+            best[name] = min(best[name], time.perf_counter() - t)
+            outs[name] = o
+            print(f"    round {r + 1}: {name} {best[name]:.1f} s", flush=True)
+    paths = {}
+    for name in fns:
+        ys, steps = outs[name]
+        total = float(np.sum(np.asarray(steps)))
+        out[name] = {
+            "paths": n_paths, "compile_s": max(first[name] - best[name], 0.0), "run_s": best[name],
+            "path_steps": total, "steps_per_path": total / n_paths, "path_steps_per_s": total / best[name],
+            "paths_per_s": n_paths / best[name],
+        }
         paths[name] = np.asarray(ys)
-        print(f"    {res['path_steps_per_s']:.3g} path-steps/s, compile {res['compile_s']:.1f} s", flush=True)
+        print(f"    {name}: {out[name]['path_steps_per_s']:.3g} path-steps/s", flush=True)
     return out, paths, np.asarray(ts)
 
 
@@ -366,6 +361,28 @@ def _memory_case(n_paths, T, chunk_size, mode):
     }))
 
 
+def _prng_check():
+    """Is a path's noise independent of the batch it is drawn in, for each PRNG implementation?
+
+    jaxdrift's contract: sample i of path p depends only on (key, p, i). Measured by drawing paths
+    0..7 under one vmap, paths 3..10 under another, and each path alone.
+    """
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import jaxdrift
+
+    out = {}
+    for impl in ("threefry2x32", "rbg", "unsafe_rbg"):
+        k = jax.random.key(0, impl=impl)
+        f = jax.jit(jax.vmap(lambda i, k=k: jaxdrift.path_normals(k, i, 600, 2, jnp.float32)))
+        a, c = np.asarray(f(jnp.arange(8))), np.asarray(f(jnp.arange(3, 11)))
+        b = np.stack([np.asarray(jaxdrift.path_normals(k, i, 600, 2, jnp.float32)) for i in range(8)])
+        out[impl] = bool(np.array_equal(a, b) and np.array_equal(a[3:], c[:5]))
+    return out
+
+
 def _run_memory(a, memory):
     """The memory case in a fresh subprocess (its peak RSS is its own)."""
     print(f"memory case ({a.memory_paths} paths x {a.memory_T:g} s, {memory}) in a subprocess ...", flush=True)
@@ -425,6 +442,14 @@ def _markdown(report):
                     f"| {name.split('/')[1]} | {row['t']:g} | {z['ratio']:.3f} | {z['agree']} | {b['ratio']:.3f} | "
                     f"{b['agree']} | [{z['f_interval'][0]:.2f}, {z['f_interval'][1]:.2f}] |"
                 )
+    prng = report.get("prng_path_independent")
+    if prng:
+        lines.append("")
+        lines.append(
+            "PRNG: a path's noise is independent of the batch it is drawn in (jaxdrift's reproducibility contract) for "
+            + ", ".join(f"{k}: {'yes' if v else '**no**'}" for k, v in prng.items())
+            + ". The rbg variants are faster but break the contract, so the fast mode keeps threefry."
+        )
     same = report.get("same_noise")
     if same:
         lines.append("")
@@ -456,7 +481,22 @@ def main(argv=None):
     ap.add_argument("--memory-only", action="store_true",
                     help="run only the memory case (subprocess) and write results/throughput-memory.json")
     ap.add_argument("--out", default=None, help="output stem (default benchmarks/results/throughput[-quick])")
+    ap.add_argument("--render-only", action="store_true",
+                    help="rewrite the markdown from the JSON (adding the PRNG check and memory case if missing)")
     a = ap.parse_args(argv)
+    if a.render_only:
+        import jax
+
+        jax.config.update("jax_enable_x64", True)
+        stem = Path(a.out) if a.out else RESULTS / ("throughput-quick" if a.quick else "throughput")
+        report = json.loads(stem.with_suffix(".json").read_text())
+        report.setdefault("prng_path_independent", _prng_check())
+        mem_file = RESULTS / "throughput-memory.json"
+        if "memory" not in report and mem_file.exists():
+            report["memory"] = json.loads(mem_file.read_text())
+        stem.with_suffix(".json").write_text(json.dumps(report, indent=2) + "\n")
+        stem.with_suffix(".md").write_text(_markdown(report))
+        return 0
     if a.memory_case:
         _memory_case(a.memory_paths, a.memory_T, a.memory_chunk, a.memory or "fast")
         return 0
@@ -506,6 +546,7 @@ def main(argv=None):
                 r[field.replace("vs_", "paths_vs_")] = r["paths_per_s"] / cases[ref]["paths_per_s"]
     report["cases"] = cases
     report["fast_vs_float64"] = _drift_agreement(paths, ts)
+    report["prng_path_independent"] = _prng_check()
     print("  same-noise check ...", flush=True)
     report["same_noise"] = _same_noise_check(study)
     report["machine"]["load_average_at_end"] = list(os.getloadavg())
