@@ -1,7 +1,7 @@
 """Shared setup of the benchmarks: the seed paper's half-car study (section 4) at 1 kHz.
 
 The "virtual measurement" (step 1 of section 4.1): the road-driven model (A.4) on an ISO 8608
-class C road with +-2 m hills, solved with tight tolerances, gives the contact forces f^(0) (4.3)
+class D road with +-2 m hills, solved with tight tolerances, gives the contact forces f^(0) (4.3)
 sampled at ``fs``. The noisy-force study adds white noise of standard deviation
 ``0.002 max|f^(0)|`` (the seed's sigma, about 32 N) to each force channel, drawn with
 :func:`jaxdrift.path_normals`, and integrates the force-driven model (A.3) from static equilibrium.
@@ -21,7 +21,7 @@ from jaxdrift._params import HalfCarParams
 from jaxdrift._road import iso8608_road
 
 SPEED = 20.0  # m/s
-ROAD_CLASS = "C"
+ROAD_CLASS = "D"  # as jaxdrift._study.StudyConfig (forces closest to the paper's Fig. 4)
 ROAD_SEED = 0
 NOISE_FRACTION = 0.002  # sigma = 0.002 f_max (section 4.2)
 

@@ -23,15 +23,19 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 
-def _best(fn, *args, repeats=3):
+def _interleaved(cases, rounds=3):
+    """Best time of each ``(fn, args)`` over ``rounds`` interleaved rounds (after a warm-up call),
+    so that a change of load on a shared machine hits every case alike."""
     import jax
 
-    jax.block_until_ready(fn(*args))
-    best = float("inf")
-    for _ in range(repeats):
-        t = time.perf_counter()
+    for fn, args in cases.values():
         jax.block_until_ready(fn(*args))
-        best = min(best, time.perf_counter() - t)
+    best = {k: float("inf") for k in cases}
+    for _ in range(rounds):
+        for k, (fn, args) in cases.items():
+            t = time.perf_counter()
+            jax.block_until_ready(fn(*args))
+            best[k] = min(best[k], time.perf_counter() - t)
     return best
 
 
@@ -49,6 +53,7 @@ def main():
     p = HalfCarParams()
     n_paths, K = 1024, 2000
     out = {"paths": n_paths, "load_average_at_start": list(os.getloadavg()), "rhs_ns_per_path": {}, "step_ns_per_path": {}}
+    rhs_cases = {}
     for dtype in (jnp.float32, jnp.float64):
         dn = jnp.dtype(dtype).name
         for linear in (False, True):
@@ -70,14 +75,16 @@ def main():
                 def loop(x, f, ev=ev):
                     return jax.lax.scan(lambda x, _: (x + 1e-9 * ev(x, f), None), x, None, length=K)[0]
 
-                t = _best(jax.jit(loop), x, f)
                 key = f"{dn}, {'linear' if linear else 'nonlinear'}, {layout}"
-                out["rhs_ns_per_path"][key] = t / (n_paths * K) * 1e9
-                print(key, f"{out['rhs_ns_per_path'][key]:.1f} ns", flush=True)
+                rhs_cases[key] = ((jax.jit(loop), (x, f)), n_paths * K)
         xs = jnp.linspace(-0.5, 0.5, n_paths * 16, dtype=dtype)
         for name, fn in (("sin", jnp.sin), ("cos", jnp.cos), ("multiply-add", lambda v: v * 1.0001 + 0.5)):
             g = jax.jit(lambda v, fn=fn: jax.lax.scan(lambda c, _: (fn(c) * 0.5, None), v, None, length=64)[0])
-            out["rhs_ns_per_path"][f"{dn}, {name} of one element"] = _best(g, xs) / (xs.size * 64) * 1e9
+            rhs_cases[f"{dn}, {name} of one element"] = ((g, (xs,)), xs.size * 64)
+    best = _interleaved({k: v[0] for k, v in rhs_cases.items()})
+    for k, (_, count) in rhs_cases.items():
+        out["rhs_ns_per_path"][k] = best[k] / count * 1e9
+        print(k, f"{out['rhs_ns_per_path'][k]:.1f} ns", flush=True)
 
     rhs = force_rhs(p)
     T, dt = 2.0, 1e-3
@@ -101,10 +108,13 @@ def main():
         return jax.jit(jax.vmap(path))
 
     idx = jnp.arange(512)
+    step_cases = {}
     for kind, dtype in (("engine", jnp.float64), ("fast", jnp.float32), ("fast", jnp.float64),
                         ("noise only", jnp.float64), ("noise only", jnp.float32)):
-        name = f"{kind} {jnp.dtype(dtype).name}"
-        out["step_ns_per_path"][name] = _best(make(kind, dtype), idx, repeats=2) / (idx.size * n_steps) * 1e9
+        step_cases[f"{kind} {jnp.dtype(dtype).name}"] = (make(kind, dtype), (idx,))
+    best = _interleaved(step_cases, rounds=2)
+    for name in step_cases:
+        out["step_ns_per_path"][name] = best[name] / (idx.size * n_steps) * 1e9
         print(name, f"{out['step_ns_per_path'][name]:.0f} ns per path-step", flush=True)
     out["load_average_at_end"] = list(os.getloadavg())
     path = HERE / "results" / "profile_step.json"

@@ -531,7 +531,10 @@ def main(argv=None):
     }
     print(f"virtual measurement ({T:g} s) ...", flush=True)
     study = paper_study(T=T)
+    from _setup import ROAD_CLASS, ROAD_SEED, SPEED
+
     report["config"]["sigma_N"] = study.sigma
+    report["config"]["road"] = f"ISO 8608 class {ROAD_CLASS}, seed {ROAD_SEED}, +-2 m hills of 250 m, {SPEED:g} m/s"
     cases, paths, ts = _jax_cases(study, n_paths, a.repeats, which)
     for name, fixed in (("fixed/scipy", True), ("adaptive/scipy", False)):
         if name in which:

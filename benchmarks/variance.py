@@ -6,7 +6,7 @@ covariance propagated along the noise-free reference (``jaxdrift.propagate_covar
 times up to 30 s:
 
 * point mass (2.1), ``eta = 0`` and ``eta = 0.5``: (2.8) and (2.11) with sigma^2 = sigma_M^2 dt (2.5);
-* the force-driven half-car on the seed's road (``benchmarks/_setup.py``: ISO 8608 class C,
+* the force-driven half-car on the seed's road (``benchmarks/_setup.py``: ISO 8608 class D,
   +-2 m hills, 20 m/s, sigma = 0.002 f_max), pitch ``beta`` and heave ``z3``; the closed form is the
   free-mode law (double-integrated noise through the generalised inertia, ``docs/variance.md``),
   the reference is the trajectory under the undisturbed forces;
@@ -136,7 +136,10 @@ def halfcar(n_paths, T, chunk):
             _row(t, res.var[k, j], res.count, free[k, fm, fm], pv[k, col]) | {"reference": float(ref[k, col])}
             for k, t in enumerate(ts)
         ]
-    meta = {"sigma_N": study.sigma, "mc_seconds": t_mc, "propagation_seconds": t_prop,
+    from _setup import ROAD_CLASS, ROAD_SEED, SPEED
+
+    meta = {"road": f"ISO 8608 class {ROAD_CLASS}, seed {ROAD_SEED}, +-2 m hills of 250 m, {SPEED:g} m/s",
+            "sigma_N": study.sigma, "mc_seconds": t_mc, "propagation_seconds": t_prop,
             "max_abs_reference_beta_deg": float(np.degrees(np.max(np.abs(study.xbar_ref[:, 3]))))}
     return out, meta
 
@@ -256,7 +259,7 @@ def _markdown(report):
     if hc:
         lines += [
             "",
-            f"Half-car: sigma = {hc['sigma_N']:.1f} N per force channel (0.002 f_max of this road), largest reference "
+            f"Half-car on {hc.get('road', 'the seed road')}: sigma = {hc['sigma_N']:.1f} N per force channel (0.002 f_max of this road), largest reference "
             f"pitch {hc['max_abs_reference_beta_deg']:.2f} deg; Monte-Carlo {hc['mc_seconds']:.0f} s, propagation "
             f"{hc['propagation_seconds']:.0f} s on this machine.",
         ]
