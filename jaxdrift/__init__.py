@@ -79,6 +79,8 @@ from ._variance import (
 )
 
 # --- diagnosis (#5) ---
+from ._csvio import InputError, VehicleRun, read_model, read_vehicle_run, write_vehicle_run
+from ._diagnose_vehicle import diagnose_vehicle_run
 
 # --- attitude (#6) ---
 from ._accel_array import check_positions, consistency_residual, reconstruct as reconstruct_from_accelerometers, simulate_array

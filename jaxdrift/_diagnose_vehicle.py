@@ -9,10 +9,9 @@ The method (``docs/diagnosis.md`` explains and justifies it):
    driven by ``f1, f2, sin(beta)`` and ``(sin beta)'``. It gives the chassis spring forces
    ``f3, f4`` at every sample, and from them the residual channels:
 
-   * ``moment`` (needs ``beta``): the enforced moment ``lambda = I beta'' - cos(beta)(b f3 - a f4)``,
-     evaluated in Numerov form ``I D2[beta]_k - (M_{k-1} + 10 M_k + M_{k+1})/12`` so that the
-     second difference of the sampled pitch is consistent to ``O(h^4)`` (a plain finite difference
-     would leave a ~2 % error at 200 Hz that looks like a wrong inertia);
+   * ``moment`` (needs ``beta``): the enforced moment ``lambda = I beta'' - cos(beta)(b f3 - a f4)``
+     at every sample, with ``beta''`` a spectral derivative of the smoothly padded record (a plain
+     finite difference would leave a ~2 % error at 200 Hz that looks like a wrong inertia);
    * ``heave`` (needs ``z3``): the vertical enforced force ``m3 z3'' - (m3 g - f3 - f4)``, same form;
    * ``spring1``/``spring2`` (need ``s1``/``s2``): simulated ``f3`` against ``k3 s1 + d3 s1'``;
    * ``static``: the first sample against the model's static loads ``f1 = m1 g + a m3 g/(a+b)``,
@@ -23,7 +22,8 @@ The method (``docs/diagnosis.md`` explains and justifies it):
 
    The system is integrated exactly between samples for cubic-spline inputs (matrix exponential of
    the system augmented with the polynomial basis), then run as a diagonal recursion
-   (``scipy.signal.lfilter``): 60 s at 1 kHz takes a few tens of milliseconds per evaluation.
+   (``scipy.signal.lfilter``). Below 800 Hz the inputs are first refined by band-limited (FFT)
+   interpolation: road-driven signals are band-limited, not piecewise cubic.
 
 2. **Causes as parameters.** Each cause is a parameter of the pipeline: ``true force =
    (measured(t + delay) - offset) / scale``, ``true parameter = ratio x model``. The residual is
@@ -37,8 +37,8 @@ The method (``docs/diagnosis.md`` explains and justifies it):
    the coloured residual noise, passes a Bonferroni-corrected 0.1 % level. Candidates whose fit is
    not significantly worse than the chosen one are reported as indistinguishable; keys the
    available signals do not see at all are reported as not identifiable. The noise level comes
-   from the residual left after the fit, with a 95 % interval from the effective number of
-   independent residual samples.
+   from the low band of the residual left after the fit (``_Problem.lowband_noise``), where the
+   comparison's own discretisation error does not reach.
 
 4. **Gain**: enforced-moment RMS (or the available residual) before and after, and the
    force-driven pitch error before and after.
@@ -558,6 +558,11 @@ def _hf_noise_sigma(f: np.ndarray) -> float:
     return float(mad / math.sqrt(70.0))
 
 
+def lowband_cutoff(fs: float) -> float:
+    """Upper edge [Hz] of the band where the force noise is measured (see lowband_noise)."""
+    return min(fs / 6.0, 40.0)
+
+
 class _Problem:
     """Weighted residual vector r(theta) for a set of causes, and the noise response.
 
@@ -570,7 +575,7 @@ class _Problem:
         self.model = model
         self.names = pipe.channel_names
         n, K = pipe.n, pipe.trim
-        # rows kept per channel: Numerov rows k = 1..n-2 (row j is sample j + 1), spring rows
+        # rows kept per channel: moment/heave rows k = 1..n-2 (row j is sample j + 1), spring rows
         # are samples; the last K samples are left out (delays shift the record's end)
         self.offset = {"moment": 1, "heave": 1, "spring1": 0, "spring2": 0, "static": 0}
         self.rows = {}
@@ -682,18 +687,21 @@ class _Problem:
             meat += Acc.T @ Acc
         return meat
 
-    def lowband_noise(self, r: np.ndarray) -> tuple[float, float]:
+    def lowband_noise(self, r: np.ndarray, gains: dict | None = None) -> tuple[float, float]:
         """Force-noise level from the residual's low band, and its effective degrees of freedom.
 
         White force noise reaches every residual across the whole band, with a spectrum known
         from the impulse responses; the comparison's own error (interpolation of inputs that
         have content near the Nyquist frequency, the record's ends) sits at high frequencies.
-        So the residual is low-passed (zero phase, below min(fs/8, 25 Hz), inside the model's
+        So the residual is low-passed (zero phase, below min(fs/6, 40 Hz), inside the model's
         bandwidth) and its power compared with the low-passed noise response: sigma^2 =
         sum r_lp^2 / sum (h_lp^2 per row). The first and last 5 % of each channel are left out.
+        ``gains``: per force channel, the factor the correction puts on the measured samples
+        (1 / scale): noise on the measured samples reaches the residual multiplied by it.
         """
+        gains = gains or {}
         fs = 1.0 / self.pipe.h
-        fc = min(fs / 8.0, 25.0)
+        fc = lowband_cutoff(fs)
         sos = scipy.signal.butter(6, fc, fs=fs, output="sos")
         blocks = self._blocks(r[:, None])
         num = den = var_num = 0.0
@@ -707,7 +715,7 @@ class _Problem:
             unit = 0.0
             acf = 0.0
             for ch in FORCE_CHANNELS:
-                h = self.ir[(nm, ch)][0] / self.noise_std[nm]
+                h = self.ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
                 pad = np.zeros(int(4 * fs / fc))
                 hl = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
                 unit += float(np.sum(hl * hl))
@@ -817,6 +825,11 @@ ALPHA = 1e-3
 PRACTICAL = {"force_offset": 0.05, "force_scale": 2e-4, "force_delay": None, "parameter_error": 2e-4}
 
 
+def _practical(c: Cause, pipe) -> float:
+    thr = PRACTICAL[c.kind]
+    return 1e-3 * pipe.h if thr is None else thr
+
+
 def _candidates(pipe: ResidualPipeline) -> list[Cause]:
     out = []
     for ch in FORCE_CHANNELS:
@@ -856,6 +869,18 @@ def _covariance(prob: _Problem, X: np.ndarray, sigma2: float) -> np.ndarray:
     return sigma2 * inv @ meat @ inv
 
 
+def _systematic_rss(prob: _Problem, fit: "Fit", sigma2: float) -> float:
+    """RSS plus the noise RSS that the fit's parameters hide by passing less noise than the
+    model does (in the base weighting). Only a penalty: passing more noise already costs RSS."""
+    if sigma2 <= 0:
+        return fit.rss
+    p, _ = _apply(prob.model, fit.causes, fit.theta)
+    std = prob.impulse_responses(p)[1]
+    noise = sum(prob.rows[nm] * (std[nm] / prob.noise_std[nm]) ** 2 for nm in prob.names)
+    base = sum(prob.rows[nm] for nm in prob.names)
+    return fit.rss + sigma2 * max(base - noise, 0.0)
+
+
 def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
     pipe = prob.pipe
     cands = _candidates(pipe)
@@ -872,6 +897,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
     crit = scipy.stats.chi2.ppf(1 - ALPHA / max(len(active), 1), 1)
     fit = base
     path = [base.rss]
+    hf_sigma = float(np.sqrt(np.mean([_hf_noise_sigma(pipe.run[ch]) ** 2 for ch in FORCE_CHANNELS])))
     alternatives = {}
     chosen: list[Cause] = []
     dynamic = n_rows > 2
@@ -892,12 +918,16 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         if not scores:
             break
         scores.sort(key=lambda s: -s[0])
-        # refine the best few nonlinearly
-        best = None
+        # refine the best few nonlinearly; rank them by the residual beyond the noise they are
+        # expected to carry (a heavier wheel or a softer damper passes less noise: that must not
+        # count as a better explanation)
+        # (the noise level: the smaller of two upper bounds, the low band of the current residual
+        # still holding what is not yet explained, and the forces' 4th differences)
+        sig2_now = min(prob.lowband_noise(fit.r)[0], hf_sigma) ** 2 if dynamic else 0.0
         refined = []
         for gain_lin, c in scores[:4]:
             f_c = _gauss_newton(prob, chosen + [c], np.append(fit.theta, 0.0))
-            refined.append((fit.rss - f_c.rss, c, f_c))
+            refined.append((_systematic_rss(prob, fit, sig2_now) - _systematic_rss(prob, f_c, sig2_now), c, f_c))
         refined.sort(key=lambda s: -s[0])
         gain, c_best, f_best = refined[0]
         p = len(f_best.causes)
@@ -907,9 +937,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         z2 = f_best.theta[-1] ** 2 / var if var > 0 else 0.0
         est = c_best.to_estimate(f_best.theta[-1])
         size = abs(f_best.theta[-1])
-        thr = PRACTICAL[c_best.kind]
-        if thr is None:
-            thr = 1e-3 * pipe.h
+        thr = _practical(c_best, pipe)
         if log is not None:
             log.append(f"step {len(chosen) + 1}: best {c_best.label} est {est:.6g} z2 {z2:.3g} "
                        f"(crit {crit:.3g}) rss {fit.rss:.6g} -> {f_best.rss:.6g}; next: " +
@@ -940,8 +968,9 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
             break
         cov = _covariance(prob, fit.X, sigma2)
         z = fit.theta / np.sqrt(np.maximum(np.diag(cov), 1e-300))
-        weakest = int(np.argmin(np.abs(z)))
-        if z[weakest] ** 2 >= crit or p == 0:
+        small = [i for i, c in enumerate(fit.causes) if abs(fit.theta[i]) < _practical(c, pipe)]
+        weakest = small[0] if small else int(np.argmin(np.abs(z)))
+        if not small and z[weakest] ** 2 >= crit:
             break
         if log is not None:
             log.append(f"drop {fit.causes[weakest].label} (z2 {z[weakest] ** 2:.3g})")
@@ -1151,10 +1180,11 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     # ---- noise level
     notes = []
     if dynamic:
-        sigma, dof = prob.lowband_noise(fit.r)
+        sigma, dof = prob.lowband_noise(
+            fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS})
         lo, hi = _chi2_sigma_interval(sigma, dof)
         noise_found = sigma > NOISE_MIN_N
-        fc = min(0.125 / run.dt, 25.0)
+        fc = lowband_cutoff(1.0 / run.dt)
         noise_src = (f"below {fc:.3g} Hz, inside the model's bandwidth, the residual left after the "
                      f"fit has the power that white force noise of {sigma:.3g} N would give it "
                      f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
@@ -1251,7 +1281,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
         forces0 = {ch: run[ch] for ch in FORCE_CHANNELS}
-        forces1 = pipe.corrected_forces(corr_ext)
+        forces1 = {ch: v[::pipe.U] for ch, v in pipe.corrected_forces(corr_ext).items()}
         y0 = _force_driven_pitch(run, model, forces0)
         y1 = _force_driven_pitch(run, p_ext, forces1)
         sims = {"before": y0, "after": y1}

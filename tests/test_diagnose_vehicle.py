@@ -155,7 +155,7 @@ ENGINE_CASES = [
 def test_hidden_effects_engine_generator(case):
     seed, fs, speed, road, chans, size, nsys, noise = case
     effects = rg.draw_effects(seed, n_systematic=nsys, size=size, channels=chans, noise=noise)
-    cols, _ = rg.make_run(effects, duration=8.0, fs=fs, speed=speed, road_class=road, seed=seed,
+    cols, _ = rg.make_run(effects, duration=6.0, fs=fs, speed=speed, road_class=road, seed=seed,
                           channels=chans)
     rep = dv.diagnose_vehicle_run(_run(cols), DEFAULT_MODEL, with_simulation=False)
     _assert_diagnosed(rep, effects)
