@@ -275,3 +275,30 @@ def test_cli_accel_array_small(tmp_path):
     assert {"accel_reconstruction.png", "accel_noise_growth.png", "accel_highpass.png"} <= set(os.listdir(out))
     assert main(["accel-array", "--out", os.path.join(str(tmp_path), "x"), "--noise", "-1"]) == 2
     assert not os.path.exists(os.path.join(str(tmp_path), "x"))
+
+
+def test_reference_made_by_holding_the_rates(tmp_path):
+    """Another sampling convention: the reference integrates each rate held over its step (exp map)."""
+    from jaxdrift._ins import gyro_errors, vehicle_motion
+    from jaxdrift._quaternion import integrate_rates_np
+
+    m = vehicle_motion(131, 41.0, road_rms_deg=0.8)
+    dt = 0.005
+    t = 3.0 + np.arange(8001) * dt
+    w = m.body_rates(t - 3.0)
+    q = integrate_rates_np(m.quaternion(t[:1] - 3.0)[0], w, dt)
+    rng = np.random.default_rng(131)
+    wm = w * np.array([1.0, 1.0, 1.025]) + gyro_errors(rng, len(t), dt, arw=3e-4, bias=(0.0, -9e-4, 0.0))
+    p = os.path.join(str(tmp_path), "held.csv")
+    write_attitude_csv(p, t, wm, q)
+    rep = run_attitude_diagnosis(p, None, None)
+    top = {(f["cause"], f.get("channel")): f for f in rep["findings"][:2]}
+    assert set(top) == {("gyro_bias", "wy"), ("gyro_scale", "wz")}, rep["findings"]
+    assert _inside(top[("gyro_bias", "wy")], -9e-4) and _inside(top[("gyro_scale", "wz")], 1.025)
+
+
+def test_drift_without_white_noise(tmp_path):
+    tr, rep = _diag(tmp_path, 132, rrw=(0.0, 0.0, 4e-4), **GYRO)
+    first = rep["findings"][0]
+    assert (first["cause"], first["channel"]) == ("gyro_bias_drift", "wz") and _inside(first, 4e-4)
+    assert all(f["cause"] != "gyro_noise" for f in rep["findings"])
