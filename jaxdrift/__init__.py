@@ -38,6 +38,7 @@ from ._params import (
     stack_models,
 )
 from ._pointmass import (
+    euler_variance,
     pointmass_monte_carlo,
     pointmass_path,
     pointmass_rhs,

@@ -64,6 +64,8 @@ def add_parser(subparsers) -> None:
     p.add_argument("--noise-rel", type=float, default=0.002, help="noise sigma relative to max|f| (default 0.002)")
     p.add_argument("--threshold-deg", type=float, default=1.0, help="pitch drift-off threshold [deg] (default 1)")
     p.add_argument("--no-compare", action="store_true", help="skip the solver/tolerance comparison")
+    p.add_argument("--linear", action="store_true",
+                   help="simulate with the small-angle (linear) form of the model; the measurement stays nonlinear")
     p.add_argument("--quick", action="store_true",
                    help="small configuration: 10 s, 8 samples, 8 models, 4 per comparison")
     p.add_argument("--dpi", type=int, default=90, help="figure resolution (default 90)")
@@ -159,7 +161,7 @@ def run_paper(args) -> int:
         n_noise=args.samples, n_models=args.models, n_compare=args.compare_samples, n_spring=args.spring_samples,
         seed=args.seed, drift_threshold_deg=args.threshold_deg,
         compare_solvers=(SOLVER_LOOSE,) if args.no_compare else (SOLVER_LOOSE, SOLVER_TIGHT, SOLVER_FIXED),
-        progress=not args.no_progress,
+        progress=not args.no_progress, linear=args.linear,
     )
     try:
         cfg.validate()

@@ -49,8 +49,8 @@ SMALL = os.environ.get("JAXDRIFT_NOTEBOOK_SMALL", "") not in ("", "0")
 OUT = os.environ.get("JAXDRIFT_NOTEBOOK_OUT", "paper-out")
 os.makedirs(OUT, exist_ok=True)
 
-n_paths = 300 if SMALL else 2000
-duration = 10.0 if SMALL else 100.0
+n_paths = 200 if SMALL else 2000
+duration = 5.0 if SMALL else 100.0
 dt, sigma_m = 0.01, 1.0
 print(f"{n_paths} noise samples, {duration:g} s at dt = {dt} s, sigma_M = {sigma_m} N")
 
