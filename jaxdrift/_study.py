@@ -45,7 +45,7 @@ from ._inputs import SampledSignal
 from ._montecarlo import monte_carlo
 from ._noise import white_noise
 from ._params import HalfCarParams, random_perturbed_models
-from ._road import RoadProfile, WheelInputs, iso8608_road
+from ._road import WheelInputs, iso8608_road
 from ._solve import solve_ode
 
 __all__ = [

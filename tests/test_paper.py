@@ -4,7 +4,6 @@ modes against each other, the study's outputs and the CLI's bad-input handling."
 from __future__ import annotations
 
 import json
-import math
 import os
 
 import equinox as eqx
