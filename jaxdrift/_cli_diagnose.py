@@ -68,6 +68,9 @@ def write_report_atomic(path: str, report: dict) -> None:
     try:
         with os.fdopen(fd, "w") as fh:
             fh.write(text + "\n")
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a report is an ordinary file
         os.replace(tmp, path)
     except BaseException:
         try:
