@@ -1202,6 +1202,9 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                      "noise can be checked.")
 
     # ---- findings
+    corrections = {ch: {"offset": float(corr_ext[ch]["offset"]),
+                        "scale": float(1.0 / (1.0 + corr_ext[ch]["kappa"])),
+                        "delay": float(corr_ext[ch]["delay"])} for ch in FORCE_CHANNELS}
     findings = []
     se = np.sqrt(np.maximum(np.diag(sel.cov), 0.0)) if len(fit.causes) else np.zeros(0)
     names = prob.names
@@ -1231,6 +1234,23 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                     {**({"parameter": a.target} if a.kind == "parameter_error" else {"channel": a.target}),
                      "cause": a.kind, **({"estimate": e} if e is not None else {})} for a, e in alts]
             findings.append(f)
+    if not dynamic and sigma > 0:
+        # forces only: the static load at the first sample is all there is to check
+        st = res0.channels["static"]
+        for i, ch in enumerate(FORCE_CHANNELS):
+            z = float(st[i] / sigma)
+            if abs(z) > 3.5:  # two tests, well beyond the 95 % level: a static load error
+                findings.append({
+                    "cause": "force_offset", "channel": ch, "estimate": float(st[i]), "unit": "N",
+                    "interval": [float(st[i] - 1.96 * sigma), float(st[i] + 1.96 * sigma)],
+                    "evidence": (f"at the first sample (vehicle at rest) {ch} differs from the "
+                                 f"model's static load by {st[i]:+.4g} N ({abs(z):.1f} noise "
+                                 f"levels); with forces alone this cannot be told from a mass or "
+                                 f"lever-arm error of the model."),
+                    "z": abs(z),
+                    "indistinguishable_from": [{"cause": "parameter_error", "parameter": k}
+                                               for k in ("m3", "m1" if ch == "f1" else "m2", "a", "b", "g")]})
+                corrections[ch]["offset"] = float(st[i])
     if noise_found:
         findings.append({"cause": "force_noise", "estimate": float(sigma), "unit": "N",
                          "interval": [float(lo), float(hi)],
@@ -1259,14 +1279,14 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
 
     # ---- extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
-    corrections = {ch: {"offset": float(corr_ext[ch]["offset"]),
-                        "scale": float(1.0 / (1.0 + corr_ext[ch]["kappa"])),
-                        "delay": float(corr_ext[ch]["delay"])} for ch in FORCE_CHANNELS}
     metric = {"moment": "enforced_moment_rms", "heave": "vertical_enforced_force_rms",
               "spring1": "spring_force_residual_rms", "spring2": "spring_force_residual_rms",
               "static": "static_load_error_rms"}[main]
     gain = {"metric": metric, "before": _rms(kept(res0, main)), "after": _rms(kept(res1, main)),
             "unit": _CHANNEL_UNITS[main]}
+    if not dynamic:
+        st = res0.channels["static"]
+        gain["after"] = _rms([st[i] - corrections[ch]["offset"] for i, ch in enumerate(FORCE_CHANNELS)])
 
     sim_err = {}
     if "moment" in names:

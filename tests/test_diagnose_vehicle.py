@@ -290,3 +290,23 @@ def test_hidden_effect_sweep():
     assert ok_first >= n - 1
     # 95 % intervals: coverage over ~40 effects at least 85 % (binomial 1 % lower tail)
     assert covered >= 0.85 * total
+
+
+def test_forces_only_run_checks_static_load_and_noise():
+    """Without pitch, heave or spring travel only the static load and the noise are checked;
+    a static offset is reported with the model errors it cannot be told from."""
+    rng = np.random.default_rng(5)  # the offset is read from one noisy sample: 95 % coverage
+    n = 2001
+    t = np.arange(n) / 200.0
+    swing = 300 * np.sin(2 * np.pi * 0.5 * t) * np.minimum(t, 1.0)
+    cols = {"t": t, "f1": 3825.0 + 150.0 + swing + 10 * rng.standard_normal(n),
+            "f2": 3825.0 - swing + 10 * rng.standard_normal(n)}
+    rep = dv.diagnose_vehicle_run(_run(cols), DEFAULT_MODEL)
+    f = rep["findings"]
+    assert [_ftarget(x) for x in f] == [("force_offset", "f1"), ("force_noise", None)]
+    assert f[0]["interval"][0] <= 150.0 <= f[0]["interval"][1]
+    assert {"parameter": "m3", "cause": "parameter_error"} in f[0]["indistinguishable_from"]
+    assert f[1]["estimate"] == pytest.approx(10.0, rel=0.15)
+    assert rep["gain"]["metric"] == "static_load_error_rms"
+    assert rep["gain"]["after"] < 0.2 * rep["gain"]["before"]
+    assert rep["simulation_error"] == {}
