@@ -370,8 +370,18 @@ def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_
         g = Jf.T @ (Wf * ef)
         # errors in variables: the scale regressor sum R omega_c dt carries the same white noise as e;
         # remove the expected product, (1/s^2) sum_i w_i n_i sigma_c^2 dt^2, from score and Hessian
+        weak = []
         for c in range(3):
             eiv = float(np.sum(wts * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
+            if eiv > 0.25 * H[sc + c, sc + c]:
+                # the rotation about this axis is too small against the noise: the corrected Hessian
+                # would be near zero. The scale is not observable here; keep it at 1.
+                weak.append(c)
+                H[sc + c, :] = 0.0
+                H[:, sc + c] = 0.0
+                H[sc + c, sc + c] = 1.0
+                g[sc + c] = theta[sc + c] - 1.0
+                continue
             g[sc + c] += eiv
             H[sc + c, sc + c] -= eiv
         step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
@@ -386,7 +396,7 @@ def _reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_
     cov = np.linalg.pinv(H, rcond=1e-12)
     return {
         "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
-        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]),
+        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]), "weak_scale": weak,
     }
 
 
@@ -751,7 +761,9 @@ def diagnose_attitude(run, positions=None):
         for c in range(3):
             ch = CHANNELS[c]
             s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
-            if s_se > 0.05:
+            if c in fit["weak_scale"]:
+                not_observed.append(f"scale of {ch} (too little rotation about it against the noise)")
+            elif s_se > 0.05:
                 not_observed.append(f"scale of {ch} (too little rotation about it: SE {_fmt(s_se)})")
             elif abs(s_hat - 1) / max(s_se, 1e-300) > Z_SIGNIFICANT and abs(s_hat - 1) > scale_floor:
                 scale[c] = s_hat
