@@ -318,6 +318,7 @@ def main(argv=None):
     ap.add_argument("--T", type=float, default=None)
     ap.add_argument("--chunk", type=int, default=250)
     ap.add_argument("--out", default=None)
+    ap.add_argument("--road-class", default=None, help="ISO 8608 class of the half-car road (default: _setup's, D)")
     ap.add_argument("--render-only", action="store_true", help="rewrite the markdown and plot from the JSON")
     a = ap.parse_args(argv)
     if a.render_only:
@@ -329,6 +330,10 @@ def main(argv=None):
     import jax
 
     jax.config.update("jax_enable_x64", True)
+    if a.road_class:
+        import _setup
+
+        _setup.ROAD_CLASS = a.road_class
     T = a.T or (10.0 if a.quick else 30.0)
     n_paths = a.paths or (250 if a.quick else 1000)
     report = {
