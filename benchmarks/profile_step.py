@@ -4,7 +4,8 @@ Measures, per path, the cost of one evaluation of ``force_driven_rhs`` (the nonl
 its ``linear=True`` form, float32 and float64) in the layout ``vmap`` produces (state ``(paths,
 10)``) and with the batch on the last axis (state ``(10, paths)``), and the cost of a whole fixed
 1 ms DOPRI5 step (6 evaluations) of ``jaxdrift.solve_ode`` and of the fast mode, with the same
-noisy sampled forces. Writes ``benchmarks/results/profile_step.json``.
+noisy sampled forces, and of the fast kernel with the forces held constant (no per-stage
+``SampledSignal`` evaluation) and the noise generation alone. Writes ``benchmarks/results/profile_step.json``.
 
 Reproduce (about 3 minutes on 2 cores)::
 
@@ -103,6 +104,18 @@ def main():
                 return jaxdrift.solve_ode(rhs, x0, 0.0, T, saveat=ts, args=sig, dt=dt).ys
             if kind == "noise only":
                 return sig.values
+            if kind.startswith("fast, inputs on the grid"):
+                def rhs_u(t, x, u, a):
+                    return force_driven_rhs(t, x, p, u[0], u[1])
+
+                return jaxdrift.solve_fixed_fast(rhs_u, x0, 0.0, T, saveat=ts, inputs=sig.values, dt=dt, dtype=dtype).ys
+            if kind.startswith("fast, constant input"):
+                # The same kernel without the per-stage SampledSignal evaluation (forces fixed).
+                def rhs_const(t, x, a):
+                    return force_driven_rhs(t, x, p, a[0], a[1])
+
+                return jaxdrift.solve_fixed_fast(rhs_const, x0, 0.0, T, saveat=ts, args=sig.values[0], dt=dt,
+                                                 dtype=dtype).ys
             return jaxdrift.solve_fixed_fast(rhs, x0, 0.0, T, saveat=ts, args=sig, dt=dt, dtype=dtype).ys
 
         return jax.jit(jax.vmap(path))
@@ -110,6 +123,8 @@ def main():
     idx = jnp.arange(512)
     step_cases = {}
     for kind, dtype in (("engine", jnp.float64), ("fast", jnp.float32), ("fast", jnp.float64),
+                        ("fast, inputs on the grid", jnp.float64), ("fast, inputs on the grid", jnp.float32),
+                        ("fast, constant input", jnp.float64), ("fast, constant input", jnp.float32),
                         ("noise only", jnp.float64), ("noise only", jnp.float32)):
         step_cases[f"{kind} {jnp.dtype(dtype).name}"] = (make(kind, dtype), (idx,))
     best = _interleaved(step_cases, rounds=2)

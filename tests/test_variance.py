@@ -355,3 +355,19 @@ def test_fast_mode_rejects_off_grid_saves():
         jaxdrift.solve_fixed_fast(f, jnp.ones(1), 0.0, 1.0, dt=0.1, saveat=[0.1, 0.2, 0.5])
     with pytest.raises(ValueError, match="whole number"):
         jaxdrift.solve_fixed_fast(f, jnp.ones(1), 0.0, 1.05, dt=0.1, saveat=[0.1])
+
+
+def test_fast_mode_inputs_on_the_grid_equal_sampled_signal():
+    # inputs= (two samples read per step) gives the SampledSignal values at every stage.
+    rng = np.random.default_rng(5)
+    u = jnp.asarray(rng.normal(size=(201, 2)))
+    f_sig = lambda t, y, sig: jnp.stack([y[1], -4.0 * y[0] + sig(t)[0] - 0.5 * sig(t)[1] * y[1]])
+    f_u = lambda t, y, uu, a: jnp.stack([y[1], -4.0 * y[0] + uu[0] - 0.5 * uu[1] * y[1]])
+    ts = np.linspace(0.0, 2.0, 5)
+    y0 = jnp.array([1.0, 0.0])
+    kw = dict(dt=0.01, saveat=ts, dtype=jnp.float64, compensated=False)
+    a = jaxdrift.solve_fixed_fast(f_sig, y0, 0.0, 2.0, args=jaxdrift.SampledSignal(0.0, 0.01, u), **kw).ys
+    b = jaxdrift.solve_fixed_fast(f_u, y0, 0.0, 2.0, inputs=u, **kw).ys
+    np.testing.assert_allclose(np.asarray(b), np.asarray(a), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="inputs must have shape"):
+        jaxdrift.solve_fixed_fast(f_u, y0, 0.0, 2.0, inputs=u[:-1], **kw)
