@@ -462,7 +462,33 @@ class ResidualPipeline:
             return np.array([s1 + b * self.S[0], s2 - a * self.S[0], b * self.dS[0], -a * self.dS[0]])
         return np.array([s1, s2, 0.0, 0.0])
 
-    def simulate(self, p: dict, forces: dict[str, np.ndarray], *, linear_part_only=False):
+    def _corrected_coeffs(self, corr: dict, smooth: bool):
+        """Spline coefficients (fine grid) and first values of the corrected forces.
+
+        The spline is linear in the data, so offset and scale act on the cached coefficients of
+        the (shifted) measured signal: only a new delay needs a new spline.
+        """
+        coeffs, first = {}, {}
+        for ch in FORCE_CHANNELS:
+            c = corr[ch]
+            key = ("coef", ch, smooth, float(c["delay"]))
+            if key not in self._fspl_cache:
+                if sum(1 for k in self._fspl_cache if k[0] == "coef") > 16:
+                    for k in [k for k in self._fspl_cache if k[0] == "coef"]:
+                        del self._fspl_cache[k]
+                f = self.corrected_forces({ch: {"offset": 0.0, "kappa": 0.0, "delay": c["delay"]}
+                                           for ch in FORCE_CHANNELS}, smooth)[ch]
+                self._fspl_cache[key] = (_poly_coeffs(CubicSpline(self.tauf, f)), float(f[0]))
+            C, f0 = self._fspl_cache[key]
+            C = C.copy()
+            C[0] -= c["offset"]
+            C *= 1.0 + c["kappa"]
+            coeffs[ch] = C
+            first[ch] = (f0 - c["offset"]) * (1.0 + c["kappa"])
+        return coeffs, first
+
+    def simulate(self, p: dict, forces: dict[str, np.ndarray] | None, *, linear_part_only=False,
+                 forces_c: dict | None = None):
         """Spring forces (f3, f4) at the samples. ``linear_part_only``: response to the forces
         alone (zero initial state, no prescribed-motion and gravity inputs), for the noise
         impulse responses."""
@@ -473,7 +499,8 @@ class ResidualPipeline:
                 self._disc_cache.clear()
             self._disc_cache[key] = (_discretise(A, B, self.hf), names)
         (Phi, G), names = self._disc_cache[key]
-        forces_c = {ch: _poly_coeffs(CubicSpline(self.tauf, forces[ch])) for ch in FORCE_CHANNELS}
+        if forces_c is None:
+            forces_c = {ch: _poly_coeffs(CubicSpline(self.tauf, forces[ch])) for ch in FORCE_CHANNELS}
         # contributions of the prescribed-motion and gravity inputs depend on the parameters
         # only: cached per parameter set
         fkey = (key, "fixed")
@@ -516,10 +543,12 @@ class ResidualPipeline:
         """Residual channels at the measured samples (physical units). ``forces``: force
         samples on the measured grid to use instead of the corrected measured ones."""
         if forces is None:
-            forces = self.corrected_forces(corr, smooth)
+            forces_c, first = self._corrected_coeffs(corr, smooth)
         else:
             forces = {ch: self._resample(forces[ch]) for ch in FORCE_CHANNELS}
-        f3, f4 = self.simulate(p, forces, linear_part_only=linear_part_only)
+            forces_c = None
+            first = {ch: forces[ch][0] for ch in FORCE_CHANNELS}
+        f3, f4 = self.simulate(p, forces, linear_part_only=linear_part_only, forces_c=forces_c)
         lin = linear_part_only
         U = self.U
         ch = {}
@@ -540,9 +569,9 @@ class ResidualPipeline:
         f1s = p["m1"] * g + a * m3 * g / (a + b)
         f2s = p["m2"] * g + b * m3 * g / (a + b)
         if lin:
-            ch["static"] = np.array([forces["f1"][0], forces["f2"][0]])
+            ch["static"] = np.array([first["f1"], first["f2"]])
         else:
-            ch["static"] = np.array([forces["f1"][0] - f1s, forces["f2"][0] - f2s])
+            ch["static"] = np.array([first["f1"] - f1s, first["f2"] - f2s])
         return Residuals(ch, f3[::U], f4[::U])
 
 
@@ -783,7 +812,7 @@ def _proj(X: np.ndarray, r: np.ndarray) -> float:
     return float(v @ v)
 
 
-def _gauss_newton(prob: _Problem, causes, theta0, iters=8) -> Fit:
+def _gauss_newton(prob: _Problem, causes, theta0, iters=6) -> Fit:
     """Instrumental-variable Gauss-Newton: drive X^T r(theta) to zero, X the instruments."""
     theta = _clip_theta(causes, theta0, prob.pipe)
     r, res = prob.eval(causes, theta)
@@ -925,7 +954,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         # still holding what is not yet explained, and the forces' 4th differences)
         sig2_now = min(prob.lowband_noise(fit.r)[0], hf_sigma) ** 2 if dynamic else 0.0
         refined = []
-        for gain_lin, c in scores[:4]:
+        for gain_lin, c in scores[:3]:
             f_c = _gauss_newton(prob, chosen + [c], np.append(fit.theta, 0.0))
             refined.append((_systematic_rss(prob, fit, sig2_now) - _systematic_rss(prob, f_c, sig2_now), c, f_c))
         refined.sort(key=lambda s: -s[0])
@@ -951,7 +980,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         for g_c, c, f_c in refined[1:]:
             if g_c >= gain - q:
                 alts.append((c, float(c.to_estimate(f_c.theta[-1]))))
-        for g_lin, c in scores[4:]:
+        for g_lin, c in scores[3:]:
             if g_lin >= gain - q:
                 alts.append((c, None))
         alternatives[c_best] = alts
