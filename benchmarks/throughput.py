@@ -143,6 +143,7 @@ def _jax_cases(study, n_paths, repeats, which):
 
     import jaxdrift
     from _setup import force_rhs
+    from jaxdrift._halfcar import force_driven_rhs
 
     p = study.params
     rhs = force_rhs(p)
@@ -183,6 +184,22 @@ def _jax_cases(study, n_paths, repeats, which):
 
         return make
 
+    def fast_grid(dtype=jnp.float32):
+        # The fast kernel reading the two samples of each step (inputs= on the grid) instead of
+        # evaluating the SampledSignal at every stage; same samples, same values.
+        def make():
+            def rhs_u(t, x, u, a):
+                return force_driven_rhs(t, x, p, u[0], u[1])
+
+            def path(i):
+                u = f0.astype(dtype) + jaxdrift.path_normals(key, i, n, 2, dtype) * jnp.asarray(sigma, dtype)
+                sol = jaxdrift.solve_fixed_fast(rhs_u, x0, 0.0, T, saveat=ts, inputs=u, dt=dt, dtype=dtype)
+                return sel(sol.ys), sol.stats["num_steps"]
+
+            return jax.vmap(path)
+
+        return make
+
     def dfx(adaptive):
         def make():
             term = diffrax.ODETerm(rhs)
@@ -213,6 +230,7 @@ def _jax_cases(study, n_paths, repeats, which):
         "fixed/jaxdrift": jd_fixed,
         "fixed/jaxdrift-fast": fast(),
         "fixed/jaxdrift-fast-rbg": fast(key_=jax.random.key(0, impl="rbg")),
+        "fixed/jaxdrift-fast-grid": fast_grid(),
         "fixed/jaxdrift-float32-plain": fast(compensated=False),
         "fixed/jaxdrift-fast-float64": fast(dtype=jnp.float64, compensated=False),
         "fixed/diffrax": dfx(False),
@@ -263,7 +281,7 @@ def _drift_agreement(paths, ts, level=0.95):
 
     ref = paths.get("fixed/jaxdrift")
     out = {}
-    for name in ("fixed/jaxdrift-fast", "fixed/jaxdrift-fast-rbg", "fixed/jaxdrift-float32-plain"):
+    for name in ("fixed/jaxdrift-fast", "fixed/jaxdrift-fast-grid", "fixed/jaxdrift-fast-rbg", "fixed/jaxdrift-float32-plain"):
         if ref is None or name not in paths:
             continue
         y = paths[name].astype(np.float64)
