@@ -10,6 +10,15 @@ import numpy as np
 __all__ = ["SampledSignal"]
 
 
+def _static_float(x) -> float | None:
+    if isinstance(x, jax.core.Tracer):
+        return None
+    try:
+        return float(x)
+    except (TypeError, jax.errors.ConcretizationTypeError, jax.errors.TracerArrayConversionError):
+        return None
+
+
 class SampledSignal(eqx.Module):
     """Uniformly sampled signal ``values[i] = x(t0 + i dt)`` with ``values`` of shape ``(n, ch)``.
 
@@ -23,6 +32,10 @@ class SampledSignal(eqx.Module):
     t0: jax.Array
     dt: jax.Array
     kind: str = eqx.field(static=True, default="linear")
+    # t0 and dt as Python floats when they were given as concrete numbers: lets the fixed-step
+    # integrator see that the step grid is aligned with the samples (see ``local_to_step``).
+    t0_static: float | None = eqx.field(static=True, default=None)
+    dt_static: float | None = eqx.field(static=True, default=None)
 
     def __init__(self, t0, dt, values, kind: str = "linear"):
         if kind not in ("linear", "zoh"):
@@ -44,6 +57,8 @@ class SampledSignal(eqx.Module):
         self.t0 = jnp.asarray(t0, values.dtype)
         self.dt = jnp.asarray(dt, values.dtype)
         self.kind = kind
+        self.t0_static = _static_float(t0)
+        self.dt_static = dtc if _static_float(dt) is not None else None
 
     @property
     def n_samples(self) -> int:
@@ -66,3 +81,52 @@ class SampledSignal(eqx.Module):
         lo = jax.lax.dynamic_index_in_dim(self.values, i, keepdims=False)
         hi = jax.lax.dynamic_index_in_dim(self.values, i + 1, keepdims=False)
         return lo + w * (hi - lo)
+
+
+class _StepSignal(eqx.Module):
+    """A :class:`SampledSignal` restricted to one sample interval ``[t_left, t_left + dt]``.
+
+    The fixed-step integrator substitutes it for the full signal during a step that coincides with
+    a sample interval: the two samples are read once per step instead of once per stage (the
+    strided gather of per-path samples is a large part of a step under ``vmap``). Values equal the
+    full signal's on that interval, end holds included.
+    """
+
+    lo: jax.Array
+    hi: jax.Array
+    t_left: jax.Array
+    dt: float = eqx.field(static=True)
+    kind: str = eqx.field(static=True)
+
+    def __call__(self, t):
+        s = jnp.clip((t - self.t_left) / self.dt, 0.0, 1.0).astype(self.lo.dtype)
+        if self.kind == "zoh":
+            return jnp.where(s >= 1.0 - 1e-9, self.hi, self.lo)
+        return self.lo + s * (self.hi - self.lo)
+
+
+def local_to_step(args, t0_grid: float, dt: float, step_index):
+    """Replace every grid-aligned :class:`SampledSignal` in ``args`` by its :class:`_StepSignal`.
+
+    A signal qualifies when its sampling interval equals the step ``dt`` and its samples fall on
+    the step grid ``t0_grid + i dt`` (both known as Python floats at trace time); others are left
+    as they are.
+    """
+
+    def conv(leaf):
+        if not isinstance(leaf, SampledSignal) or leaf.dt_static is None or leaf.t0_static is None:
+            return leaf
+        if abs(leaf.dt_static - dt) > 1e-12 * dt:
+            return leaf
+        offset = (t0_grid - leaf.t0_static) / dt
+        if abs(offset - round(offset)) > 1e-9:
+            return leaf
+        n = leaf.values.shape[0]
+        k = jnp.clip(step_index + int(round(offset)), 0, n - 2)
+        lo = jax.lax.dynamic_index_in_dim(leaf.values, k, keepdims=False)
+        hi = jax.lax.dynamic_index_in_dim(leaf.values, k + 1, keepdims=False)
+        # Before the first sample the full signal holds values[0]: keep that with t_left's clip.
+        t_left = leaf.t0_static + k.astype(leaf.values.dtype) * dt
+        return _StepSignal(lo=lo, hi=hi, t_left=t_left, dt=dt, kind=leaf.kind)
+
+    return jax.tree.map(conv, args, is_leaf=lambda x: isinstance(x, SampledSignal))

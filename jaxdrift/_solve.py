@@ -18,6 +18,7 @@ from jax.custom_batching import custom_vmap
 import jax.numpy as jnp
 import numpy as np
 
+from ._inputs import local_to_step
 from ._tableau import DOPRI5, ButcherTableau
 
 __all__ = ["RESULTS", "Result", "Solution", "StepController", "solve_ode"]
@@ -283,6 +284,7 @@ def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, metho
     per_step = _max_saves_per_step(ts_concrete, dtc)
     tab = DOPRI5
     dt = jnp.asarray(dtc, y0.dtype)
+    t0c_f, dtc_f = float(t0c), float(dtc)
 
     def body(carry, i):
         t_i, y, k0, idx, out = carry
@@ -290,12 +292,14 @@ def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, metho
         t = t0 + i * dt
         t_new = jnp.minimum(t0 + (i + 1) * dt, t1)
         h = t_new - t
+        # Grid-aligned sampled inputs read their two samples once per step (see local_to_step).
+        step_args = local_to_step(args, t0c_f, dtc_f, i)
         if method == "euler":
             y_new = y + h * k0
             ks = None
         else:
-            ks, y_new = _stages(tab, f, t, y, k0, h, args)
-        k_new = f(t_new, y_new, args)
+            ks, y_new = _stages(tab, f, t, y, k0, h, step_args)
+        k_new = f(t_new, y_new, step_args)
         t_last = jnp.where(i == n_steps - 1, t1, t_new)
 
         def do_save(idx, out):
