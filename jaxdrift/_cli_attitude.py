@@ -94,6 +94,20 @@ def _prepare(out, usage):
     return tempfile.mkdtemp(prefix=".jaxdrift-tmp-", dir=parent)
 
 
+def _run_into(out, study):
+    """Run ``study(tmp_dir)`` and move its files into ``out`` only if it succeeds (nothing half-written)."""
+    from .cli import UsageError
+
+    tmp = _prepare(out, UsageError)
+    try:
+        summary = study(tmp)
+        _finish(tmp, out)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return summary
+
+
 def _finish(tmp, out):
     os.makedirs(out, exist_ok=True)
     for name in os.listdir(tmp):
@@ -120,14 +134,9 @@ def run_ins(args) -> int:
         _positive(k, getattr(args, k), UsageError)
     if args.paths < 2:
         raise UsageError("--paths must be at least 2")
-    tmp = _prepare(args.out, UsageError)
-    try:
-        summary = ins_study(tmp, seed=args.seed, duration=args.duration, dt=1.0 / args.rate, sigma_m=args.sigma,
-                            n_paths=args.paths, method=args.method)
-        _finish(tmp, args.out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    summary = _run_into(args.out, lambda tmp: ins_study(tmp, seed=args.seed, duration=args.duration,
+                                                        dt=1.0 / args.rate, sigma_m=args.sigma,
+                                                        n_paths=args.paths, method=args.method))
     print(json.dumps(summary["envelope"], indent=1))
     return 0
 
@@ -276,13 +285,8 @@ def run_quaternion_drift(args) -> int:
         raise UsageError("--t1 must be a multiple of 40 steps of --dt")
     if args.paths < 10:
         raise UsageError("--paths must be at least 10")
-    tmp = _prepare(args.out, UsageError)
-    try:
-        summary = quaternion_drift_study(tmp, sigma=args.sigma, t1=args.t1, dt=args.dt, n_paths=args.paths, seed=args.seed)
-        _finish(tmp, args.out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    summary = _run_into(args.out, lambda tmp: quaternion_drift_study(tmp, sigma=args.sigma, t1=args.t1, dt=args.dt,
+                                                                     n_paths=args.paths, seed=args.seed))
     print(json.dumps(summary, indent=1))
     return 0
 
@@ -357,14 +361,9 @@ def run_accel_array(args) -> int:
         _positive(k, getattr(args, k), UsageError)
     if args.paths < 10:
         raise UsageError("--paths must be at least 10")
-    tmp = _prepare(args.out, UsageError)
-    try:
-        summary = accel_array_study(tmp, seed=args.seed, duration=args.duration, dt=1.0 / args.rate,
-                                    noise=args.noise, n_paths=args.paths)
-        _finish(tmp, args.out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    summary = _run_into(args.out, lambda tmp: accel_array_study(tmp, seed=args.seed, duration=args.duration,
+                                                                dt=1.0 / args.rate, noise=args.noise,
+                                                                n_paths=args.paths))
     print(json.dumps(summary, indent=1))
     return 0
 
