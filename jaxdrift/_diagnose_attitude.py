@@ -1052,32 +1052,26 @@ def _write_plots(plots, out):
         fig.savefig(p, dpi=110)
         plt.close(fig)
         written.append(p)
+    def before_after(tt, before, after, labels, ylabel, name, lw=None):
+        fig, ax = plt.subplots(figsize=(6, 3.5))
+        ax.plot(tt - tt[0], before, lw=lw, label=labels[0])
+        ax.plot(tt - tt[0], after, lw=lw, label=labels[1])
+        ax.set_xlabel("t [s]")
+        ax.set_ylabel(ylabel)
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+        p = os.path.join(out, name)
+        fig.tight_layout()
+        fig.savefig(p, dpi=110)
+        plt.close(fig)
+        written.append(p)
+
     if "attitude" in plots:
         tt, eb, ea = plots["attitude"]
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        ax.plot(tt - tt[0], np.degrees(eb), label="gyro as measured")
-        ax.plot(tt - tt[0], np.degrees(ea), label="after corrections")
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("attitude error [deg]")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        p = os.path.join(out, "attitude_error.png")
-        fig.tight_layout()
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        before_after(tt, np.degrees(eb), np.degrees(ea), ("gyro as measured", "after corrections"),
+                     "attitude error [deg]", "attitude_error.png")
     if "array" in plots:
         tt, rb, ra = plots["array"]
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        ax.plot(tt - tt[0], rb, lw=0.5, label="given positions")
-        ax.plot(tt - tt[0], ra, lw=0.5, label="corrected positions")
-        ax.set_xlabel("t [s]")
-        ax.set_ylabel("rigidity residual [m/s^2]")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-        p = os.path.join(out, "array_residual.png")
-        fig.tight_layout()
-        fig.savefig(p, dpi=110)
-        plt.close(fig)
-        written.append(p)
+        before_after(tt, rb, ra, ("given positions", "corrected positions"), "rigidity residual [m/s^2]",
+                     "array_residual.png", lw=0.5)
     return written

@@ -334,6 +334,12 @@ def drift_off_time(ts, error, threshold) -> float:
 
 
 
+def _noisy_forces(forces, t0, dt, key, idx, sigma) -> SampledSignal:
+    """Path ``idx``'s measured forces: ``forces`` plus white noise of std ``sigma`` on both channels."""
+    v = forces + white_noise(key, idx, forces.shape[0], jnp.stack([sigma, sigma]), dtype=forces.dtype)
+    return SampledSignal(t0, dt, v)
+
+
 class _ForcePath(eqx.Module):
     """``path_fn`` of the force-driven studies (steps 2-4 and the pitch spring).
 
@@ -353,8 +359,7 @@ class _ForcePath(eqx.Module):
 
     def __call__(self, key, idx, batch):
         p, sigma, k_rot, d_rot = batch
-        v = self.forces + white_noise(key, idx, self.forces.shape[0], jnp.stack([sigma, sigma]), dtype=self.forces.dtype)
-        sig = SampledSignal(self.t0, self.dt, v)
+        sig = _noisy_forces(self.forces, self.t0, self.dt, key, idx, sigma)
         sol = simulate_forces(p, sig, self.save_ts, self.solver, pitch_spring=(k_rot, d_rot), t_span=self.span,
                               linear=self.linear)
         torque = pitch_spring_torque(sol.ys, k_rot, d_rot)
@@ -375,8 +380,7 @@ class _PitchPath(eqx.Module):
 
     def __call__(self, key, idx, batch):
         p, sigma = batch
-        v = self.forces + white_noise(key, idx, self.forces.shape[0], jnp.stack([sigma, sigma]), dtype=self.forces.dtype)
-        sig = SampledSignal(self.t0, self.dt, v)
+        sig = _noisy_forces(self.forces, self.t0, self.dt, key, idx, sigma)
         pitch = SampledSignal(self.t0, self.dt, self.pitch)
         sol, lam, inertia = simulate_prescribed_pitch(p, sig, pitch, self.save_ts, self.solver, t_span=self.span,
                                                       linear=self.linear)
