@@ -733,7 +733,8 @@ class _Problem:
         fc = lowband_cutoff(fs)
         sos = scipy.signal.butter(6, fc, fs=fs, output="sos")
         blocks = self._blocks(r[:, None])
-        num = den = var_num = 0.0
+        num = den = 0.0
+        hls, lens = {}, {}
         for nm in self.names:
             if nm == "static":
                 continue
@@ -742,41 +743,31 @@ class _Problem:
             k = slice(L // 20, L - L // 20)
             xl = scipy.signal.sosfiltfilt(sos, x)[k]
             unit = 0.0
-            acf = 0.0
             for ch in FORCE_CHANNELS:
                 h = self.ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
                 pad = np.zeros(int(4 * fs / fc))
-                hl = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
-                unit += float(np.sum(hl * hl))
-                acf = acf + np.correlate(hl, hl, mode="full")
-            Lk = len(xl)
+                hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
+                unit += float(np.sum(hls[(nm, ch)] ** 2))
+            lens[nm] = len(xl)
             num += float(np.sum(xl * xl))
-            den += unit * Lk
-            # Var(sum x^2) = 2 sigma^4 sum_{i,j} c_ij^2 ~ 2 sigma^4 L sum_lag acf^2
-            var_num += 2.0 * Lk * float(np.sum(acf ** 2))
+            den += unit * len(xl)
+        # Var(sum_a sum_t x_a(t)^2) = 2 sigma^4 sum_{a,b} sum_{t,t'} c_ab(t - t')^2, with c_ab the
+        # cross-covariance of residual channels a and b: they see the same force noise, so the
+        # cross terms count as much as the auto terms (leaving them out overstated the degrees
+        # of freedom by about 1.5 with pitch and both spring travels). The sum of c_ab^2 over all
+        # lags does not depend on the channels' relative alignment.
+        var_num = 0.0
+        for a in lens:
+            for b in lens:
+                ccf = 0.0
+                for ch in FORCE_CHANNELS:
+                    ccf = ccf + scipy.signal.correlate(hls[(a, ch)], hls[(b, ch)], mode="full", method="fft")
+                var_num += 2.0 * math.sqrt(lens[a] * lens[b]) * float(np.sum(ccf ** 2))
         if den <= 0:
             return 0.0, 1.0
         sigma2 = num / den
         dof = 2.0 * den * den / max(var_num, 1e-300)
         return math.sqrt(max(sigma2, 0.0)), dof
-
-    def effective_dof(self) -> float:
-        """n_rows^2 / tr(Sigma_w^2): the number of independent samples the residual is worth
-        (cross-channel correlations neglected)."""
-        n_rows = 0
-        tr = 0.0
-        for nm in self.names:
-            ln = self.rows[nm]
-            n_rows += ln
-            if nm == "static":
-                tr += 2.0
-                continue
-            acf = 0.0
-            for ch in FORCE_CHANNELS:
-                h = self.ir[(nm, ch)][0] / self.noise_std[nm]
-                acf = acf + np.correlate(h, h, mode="full")
-            tr += ln * float(np.sum(acf ** 2))
-        return n_rows * n_rows / tr
 
 
 #: bounds of the internal coordinates during fitting (far beyond any plausible effect)
@@ -899,15 +890,95 @@ def _covariance(prob: _Problem, X: np.ndarray, sigma2: float) -> np.ndarray:
 
 
 def _systematic_rss(prob: _Problem, fit: "Fit", sigma2: float) -> float:
-    """RSS plus the noise RSS that the fit's parameters hide by passing less noise than the
-    model does (in the base weighting). Only a penalty: passing more noise already costs RSS."""
+    """RSS plus the noise RSS that the fit's causes hide by passing less noise than the base model
+    does (in the base weighting): a parameter that damps the noise response, or a force scale
+    whose correction shrinks the measured samples, and with them their noise. Only a penalty:
+    passing more noise already costs RSS."""
     if sigma2 <= 0:
         return fit.rss
-    p, _ = _apply(prob.model, fit.causes, fit.theta)
-    std = prob.impulse_responses(p)[1]
-    noise = sum(prob.rows[nm] * (std[nm] / prob.noise_std[nm]) ** 2 for nm in prob.names)
+    p, corr = _apply(prob.model, fit.causes, fit.theta)
+    ir = prob.impulse_responses(p)[0]
+    noise = 0.0
+    for nm in prob.names:
+        if nm == "static":
+            noise += prob.rows[nm]
+            continue
+        v = sum((1.0 + corr[ch]["kappa"]) ** 2 * float(np.sum(ir[(nm, ch)][0] ** 2)) for ch in FORCE_CHANNELS)
+        noise += prob.rows[nm] * v / prob.noise_std[nm] ** 2
     base = sum(prob.rows[nm] for nm in prob.names)
     return fit.rss + sigma2 * max(base - noise, 0.0)
+
+
+_BOTH = Cause("force_offset", "both")
+
+
+def _redundant(c: Cause, chosen) -> bool:
+    """True when adding ``c`` to ``chosen`` would not widen the span of the fit: an equal offset
+    on both forces next to an offset already chosen, or ``c`` itself."""
+    if c in chosen:
+        return True
+    return c == _BOTH and any(x.kind == "force_offset" for x in chosen)
+
+
+def _normalise(prob: _Problem, fit: "Fit") -> "Fit":
+    """An equal offset on both forces next to a single-channel offset is two channel offsets:
+    report it so (the same span, the same residual)."""
+    causes = list(fit.causes)
+    if _BOTH not in causes:
+        return fit
+    singles = [c for c in causes if c.kind == "force_offset" and c != _BOTH]
+    if not singles:
+        return fit
+    ib = causes.index(_BOTH)
+    other = next(ch for ch in FORCE_CHANNELS if ch != singles[0].target)
+    theta = np.array(fit.theta, dtype=float)
+    i1 = causes.index(singles[0])
+    theta[i1] += theta[ib]
+    causes[ib] = Cause("force_offset", other)
+    return _gauss_newton(prob, causes, theta)
+
+
+def _swap_pass(prob: _Problem, fit: "Fit", active, sig2: float, log=None) -> "Fit":
+    """Exchange step of the stepwise selection: forward selection can lock in a cause that only
+    stood in for two others (a scale for an offset while a delay was not yet in). For each chosen
+    cause, refit without it, screen the others linearly in its place, refine the best two, and
+    take an exchange that lowers the systematic residual by more than the 95 % level of one
+    parameter's worth of noise."""
+    improved = True
+    rounds = 0
+    while improved and rounds < 2 and len(fit.causes) > 1:
+        improved = False
+        rounds += 1
+        cur = _systematic_rss(prob, fit, sig2)
+        for i in range(len(fit.causes)):
+            keep = [j for j in range(len(fit.causes)) if j != i]
+            others = [fit.causes[j] for j in keep]
+            f_o = _gauss_newton(prob, others, fit.theta[keep], iters=3)
+            Xo = f_o.X if others else np.zeros((len(f_o.r), 0))
+            scores = []
+            for c in active:
+                if c == fit.causes[i] or _redundant(c, others):
+                    continue
+                col = prob.jacobian(others + [c], np.append(f_o.theta, 0.0), which=[len(others)])[:, 0]
+                scores.append((_proj(np.column_stack([Xo, col]), f_o.r), c))
+            scores.sort(key=lambda s_: -s_[0])
+            best = None
+            for _, c in scores[:2]:
+                f_c = _gauss_newton(prob, others + [c], np.append(f_o.theta, 0.0))
+                v = _systematic_rss(prob, f_c, sig2)
+                if best is None or v < best[0]:
+                    best = (v, c, f_c)
+            q = scipy.stats.chi2.ppf(0.95, 1) * max(sig2, 1e-300)
+            if log is not None and best is not None:
+                log.append(f"swap? {fit.causes[i].label}: screened {[c.label for _, c in scores[:3]]}, "
+                           f"best {best[1].label} {best[0]:.6g} vs {cur:.6g}")
+            if best is not None and best[0] < cur - q:
+                if log is not None:
+                    log.append(f"swap {fit.causes[i].label} -> {best[1].label}: rss {cur:.6g} -> {best[0]:.6g}")
+                fit = _normalise(prob, best[2])
+                improved = True
+                break
+    return fit
 
 
 def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
@@ -935,7 +1006,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         Xc = fit.X if chosen else np.zeros((n_rows, 0))
         scores = []
         for c in active:
-            if c in chosen:
+            if _redundant(c, chosen):
                 continue
             if chosen:
                 col = prob.jacobian(chosen + [c], np.append(fit.theta, 0.0), which=[len(chosen)])[:, 0]
@@ -986,7 +1057,22 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         alternatives[c_best] = alts
         chosen.append(c_best)
         fit = f_best
+        if _BOTH in chosen and len([c for c in chosen if c.kind == "force_offset"]) > 1:
+            # {equal offsets, offset on f1} is {offsets on f1 and f2}: report it so
+            alts_b = alternatives.pop(_BOTH, [])
+            fit = _normalise(prob, fit)
+            new = next(c for c in fit.causes if c not in chosen)
+            alternatives[new] = [(a, e) for a, e in alts_b if a not in fit.causes]
+            chosen = list(fit.causes)
         path.append(fit.rss)
+    if dynamic and len(fit.causes) > 1:
+        sig2_now = min(prob.lowband_noise(fit.r)[0], hf_sigma) ** 2
+        before = list(fit.causes)
+        fit = _swap_pass(prob, fit, active, sig2_now, log)
+        if fit.causes != before:
+            alternatives = {c: a for c, a in alternatives.items() if c in fit.causes}
+            chosen = list(fit.causes)
+            path.append(fit.rss)
     # backward elimination: a cause chosen early can lose its significance once later causes
     # explain the same residual; drop the weakest until all pass, refitting each time
     while True:
@@ -1007,6 +1093,32 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         dropped = fit.causes[weakest]
         alternatives.pop(dropped, None)
         fit = _gauss_newton(prob, [fit.causes[i] for i in keep], fit.theta[keep])
+    # exact confounding, whatever the noise: a candidate whose signature lies in the span of the
+    # chosen causes can take the place of each chosen cause it loads on (without z3, an offset on
+    # f2 next to m3 does what an offset on f1 does). Noise-free runs make the tie exact, so the
+    # significance test above cannot see it.
+    if dynamic and fit.causes:
+        X = fit.X
+        for c in active:
+            if c in fit.causes or _redundant(c, fit.causes):
+                continue
+            col = prob.jacobian(fit.causes + [c], np.append(fit.theta, 0.0), which=[len(fit.causes)])[:, 0]
+            nc = float(np.sqrt(col @ col))
+            if nc <= 0:
+                continue
+            b, *_ = np.linalg.lstsq(X, col, rcond=None)
+            if np.sqrt(np.sum((col - X @ b) ** 2)) > 1e-3 * nc:
+                continue
+            for j, cj in enumerate(fit.causes):
+                if abs(b[j]) * np.sqrt(X[:, j] @ X[:, j]) < 0.05 * nc:
+                    continue
+                alts = alternatives.setdefault(cj, [])
+                if any(a == c for a, _ in alts):
+                    continue
+                # the same span with c in place of cj: its estimate from the linear relation
+                alts.append((c, float(c.to_estimate(fit.theta[j] / b[j]))))
+                if log is not None:
+                    log.append(f"confounded: {c.label} can replace {cj.label}")
     # rank: most significant first
     if len(fit.causes) > 1:
         order = np.argsort(-np.abs(z))
@@ -1156,9 +1268,13 @@ def _chi2_sigma_interval(sigma: float, dof: float) -> tuple[float, float]:
     return lo, hi
 
 
-def _finding_for(c: Cause, theta: float, se: float) -> dict:
+def _finding_for(c: Cause, theta: float, se: float, floor: float = 0.0) -> dict:
+    """The finding with its 95 % interval: the statistical half-width 1.96 se combined with the
+    comparison's numerical resolution ``floor`` (in theta units; without noise se is only the
+    discretisation floor of the residual, which says nothing about the estimate's own error)."""
     est = c.to_estimate(theta)
-    lo_t, hi_t = theta - 1.96 * se, theta + 1.96 * se
+    half = math.hypot(1.96 * se, floor)
+    lo_t, hi_t = theta - half, theta + half
     if c.kind == "force_scale":
         # estimate = 1 / (1 + theta): decreasing
         lo, hi = c.to_estimate(min(hi_t, 10.0)), c.to_estimate(max(lo_t, -0.99))
@@ -1264,7 +1380,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                 _describe(a, e) if e is not None else a.label for a, e in alts)
         targets = [c.target] if not (c.kind == "force_offset" and c.target == "both") else list(FORCE_CHANNELS)
         for tgt in targets:
-            f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i])
+            f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i],
+                             _practical(c, pipe))
             f["evidence"] = ev + "."
             f["z"] = float(abs(sel.z[i]))
             if alts:

@@ -294,13 +294,28 @@ def test_hidden_effect_sweep():
         ok_first += right
         if not right:
             print(f"MISS fs={fs} channels={chans} effects={effects} got={got}")
+        # two true effects the report declares indistinguishable from each other (say an offset
+        # on f2 and m3 without z3) have no separate intervals to check: the data fix only a
+        # combination of them, and the spec asks for exactly that statement
+        truth = {_target(e) for e in sysf}
+        confounded = set()
+        for f in rep["findings"]:
+            alts_t = {(a["cause"], a.get("channel", a.get("parameter")))
+                      for a in f.get("indistinguishable_from", [])}
+            if _ftarget(f) in truth and alts_t & truth:
+                confounded |= {_ftarget(f)} | (alts_t & truth)
         for e in effects:
+            if _target(e) in confounded:
+                continue
             f = [f for f in rep["findings"] if _ftarget(f) == _target(e)]
             total += 1
-            covered += bool(f) and f[0]["interval"][0] <= e["value"] <= f[0]["interval"][1]
+            ok = bool(f) and f[0]["interval"][0] <= e["value"] <= f[0]["interval"][1]
+            covered += ok
+            if not ok:
+                print(f"UNCOVERED fs={fs} channels={chans} {e} findings={got}")
     assert ok_first >= n - 1
     # 95 % intervals: coverage over ~40 effects at least 85 % (binomial 1 % lower tail)
-    assert covered >= 0.85 * total
+    assert covered >= 0.85 * total, (covered, total)
 
 
 def test_forces_only_run_checks_static_load_and_noise():
