@@ -276,6 +276,9 @@ class ResidualPipeline:
                 self.s_f[name] = sf
                 self.ds[name] = sp(self.tauf, 1)
         self.channel_names = self._channel_names()
+        #: per residual channel: (cutoff Hz, sos) of a zero-phase low-pass applied to it, set by
+        #: :meth:`_Problem.limit_bands` where the measured motion carries sensor noise
+        self.band: dict = {}
 
     def _second_derivative(self, x: np.ndarray) -> np.ndarray:
         """x'' at the measured samples 1..n-2 by spectral differentiation of the smoothly
@@ -568,6 +571,8 @@ class ResidualPipeline:
         g, m3 = p["g"], p["m3"]
         f1s = p["m1"] * g + a * m3 * g / (a + b)
         f2s = p["m2"] * g + b * m3 * g / (a + b)
+        for name, (_, sos) in self.band.items():
+            ch[name] = scipy.signal.sosfiltfilt(sos, ch[name])
         if lin:
             ch["static"] = np.array([first["f1"], first["f2"]])
         else:
@@ -585,6 +590,27 @@ def _hf_noise_sigma(f: np.ndarray) -> float:
     d4 = np.diff(f, 4)
     mad = np.median(np.abs(d4 - np.median(d4))) * 1.4826
     return float(mad / math.sqrt(70.0))
+
+
+def _diff_sigma(x: np.ndarray, k: int) -> float:
+    """Robust white-noise level from the k-th difference (var = C(2k, k) sigma^2 for white noise)."""
+    d = np.diff(x, k)
+    mad = np.median(np.abs(d - np.median(d))) * 1.4826
+    return float(mad / math.sqrt(math.comb(2 * k, k)))
+
+
+def _motion_noise_sigma(x: np.ndarray) -> float:
+    """White sensor noise on a measured motion channel, or 0 where none shows.
+
+    White noise gives the same level from the 4th and the 8th differences; the motion's own
+    content, at frequencies below the Nyquist frequency, is suppressed far more by the 8th
+    (on true road-driven runs their ratio is 0.3-0.5 at 200 Hz and below 0.05 at 500 Hz and
+    above). The 8th-difference level is taken as the noise where the ratio says white noise
+    dominates the top band."""
+    if len(x) < 64:
+        return 0.0
+    s4, s8 = _diff_sigma(x, 4), _diff_sigma(x, 8)
+    return s8 if s4 > 0 and s8 >= 0.6 * s4 else 0.0
 
 
 def lowband_cutoff(fs: float) -> float:
@@ -615,6 +641,58 @@ class _Problem:
                 self.rows[nm] = n - K - self.offset[nm]
         self._ir_cache: dict = {}
         self.ir, self.noise_std = self.impulse_responses(model)
+        self.limit_bands()
+
+    #: share of the force-noise power that sensor noise on the measured motion may add to a
+    #: residual channel before the channel is low-passed
+    MOTION_NOISE_SHARE = 0.01
+
+    def limit_bands(self):
+        """Low-pass the residual channels whose measured motion carries sensor noise.
+
+        The residuals differentiate the measured motion (``I beta''``, ``m3 z3''``, ``d s'``), so
+        white sensor noise of standard deviation s reaches them with a power spectrum growing as
+        (2 pi f)^4 (or (2 pi f)^2), while force noise reaches them through the model and fades at
+        high frequencies. Even 1e-6 rad of pitch noise (a CSV written with 6 decimals) swamps
+        the enforced moment above a few tens of Hz. The sensor noise is estimated from the 4th
+        differences of each motion channel (``_motion_noise_sigma``), the force noise from the
+        forces' 4th differences; each channel keeps
+        the band where the sensor noise adds at most ``MOTION_NOISE_SHARE`` of the force-noise
+        power. Clean motion records keep the full band (no filter).
+        """
+        pipe = self.pipe
+        run = pipe.run
+        h = pipe.h
+        sig_f = float(np.sqrt(np.mean([_hf_noise_sigma(run[ch]) ** 2 for ch in FORCE_CHANNELS])))
+        sig_f = max(sig_f, NOISE_MIN_N)
+        p = self.model
+        src = {"moment": ("beta", lambda w: p["I"] * w * w), "heave": ("z3", lambda w: p["m3"] * w * w),
+               "spring1": ("s1", lambda w: np.abs(p["k3"] + 1j * w * p["d3"])),
+               "spring2": ("s2", lambda w: np.abs(p["k4"] + 1j * w * p["d4"]))}
+        band = {}
+        for nm in self.names:
+            if nm not in src:
+                continue
+            col, gain = src[nm]
+            sig_m = _motion_noise_sigma(run[col])
+            if sig_m <= 0:
+                continue
+            nfft = 1 << int(np.ceil(np.log2(max(4 * len(self.ir[(nm, "f1")][0]), 1024))))
+            Hf = sum(np.abs(np.fft.rfft(self.ir[(nm, ch)][0], nfft)) ** 2 for ch in FORCE_CHANNELS)
+            f = np.fft.rfftfreq(nfft, h)
+            bad = sig_m ** 2 * gain(2 * np.pi * f) ** 2 > self.MOTION_NOISE_SHARE * sig_f ** 2 * Hf
+            bad[0] = False
+            if not np.any(bad):
+                continue
+            fc = float(f[np.argmax(bad)])
+            if fc >= 0.45 / h:
+                continue
+            fc = max(fc, 1.0)
+            band[nm] = (fc, scipy.signal.butter(8, fc, fs=1.0 / h, output="sos"))
+        if band:
+            pipe.band = band
+            self._ir_cache.clear()
+            self.ir, self.noise_std = self.impulse_responses(self.model)
 
     def impulse_responses(self, p: dict):
         """Per residual channel and force channel: response to a unit force sample."""
@@ -634,7 +712,10 @@ class _Problem:
                 if name == "static":
                     continue
                 off = self.offset[name]
-                lo = max(k0 - off - 20, 0)
+                pre = 20
+                if name in pipe.band:  # the zero-phase filter spreads the response both ways
+                    pre += int(3.0 / (pipe.band[name][0] * pipe.h))
+                lo = max(k0 - off - pre, 0)
                 hi = min(k0 - off + L, len(r))
                 ir[(name, ch)] = (r[lo:hi].copy(), lo - (k0 - off))  # (response, first lag)
         std = {}

@@ -336,3 +336,28 @@ def test_forces_only_run_checks_static_load_and_noise():
     assert rep["gain"]["metric"] == "static_load_error_rms"
     assert rep["gain"]["after"] < 0.2 * rep["gain"]["before"]
     assert rep["simulation_error"] == {}
+
+
+def test_sensor_noise_on_the_measured_motion_is_filtered_out():
+    """White sensor noise on pitch, heave and spring travel (1e-6: a CSV written with six
+    decimals) reaches the residuals through I beta'', m3 z3'' and d s': without the band limit
+    of ``_Problem.limit_bands`` it swamps the enforced moment and the diagnosis names a wrong
+    inertia. With it the offset is found, its interval holds the truth, and so does the noise's."""
+    effects = [{"cause": "force_offset", "channel": "f1", "value": 60.0},
+               {"cause": "force_noise", "value": 20.0}]
+    chans = ("beta", "z3", "s1", "s2")
+    cols, _ = rg.make_run(effects, duration=10.0, fs=500.0, speed=20.0, road_class="B", seed=5,
+                          channels=chans)
+    rng = np.random.default_rng(1)
+    for c in chans:
+        cols[c] = cols[c] + 1e-6 * rng.standard_normal(len(cols["t"]))
+    run = _run(cols)
+    prob = dv._Problem(dv.ResidualPipeline(run), DEFAULT_MODEL)
+    assert set(prob.pipe.band) == {"moment", "heave", "spring1", "spring2"}
+    assert all(1.0 < fc < 60.0 for fc, _ in prob.pipe.band.values())
+    rep = dv.diagnose_vehicle_run(run, DEFAULT_MODEL, with_simulation=False)
+    _assert_diagnosed(rep, effects)
+    # clean motion: no band limit at all
+    clean, _ = rg.make_run(effects, duration=4.0, fs=500.0, speed=20.0, road_class="B", seed=5,
+                           channels=chans)
+    assert dv._Problem(dv.ResidualPipeline(_run(clean)), DEFAULT_MODEL).pipe.band == {}
