@@ -267,6 +267,16 @@ class ResidualPipeline:
             self.Z = z3
             self.dZ = sp(self.tauf, 1)
             self.d2z3 = self._second_derivative(run["z3"])
+        # road height under the wheels: with pitch and heave measured the wheel states are
+        # simulated in absolute coordinates, and the tyre law checks the forces directly
+        self.zeta_f = {}
+        self.dzeta = {}
+        if self.mode == "pitch" and self.has_z3:
+            for name in ("zeta1", "zeta2"):
+                if run.has(name):
+                    zf = self._resample(run[name])
+                    self.zeta_f[name] = zf
+                    self.dzeta[name] = CubicSpline(self.tauf, zf)(self.tauf, 1)
         self.s_f = {}
         self.ds = {}
         for i, name in enumerate(("s1", "s2")):
@@ -347,6 +357,9 @@ class ResidualPipeline:
             out.append("spring1")
         if self.has_s[1]:
             out.append("spring2")
+        for i in (1, 2):
+            if f"zeta{i}" in self.zeta_f:
+                out.append(f"tyre{i}")
         out.append("static")
         return out
 
@@ -539,7 +552,7 @@ class ResidualPipeline:
         else:
             f3 = k3 * x[:, 0] + d3 * x[:, 2]
             f4 = k4 * x[:, 1] + d4 * x[:, 3]
-        return f3, f4
+        return f3, f4, x
 
     def residuals(self, p: dict, corr: dict, *, linear_part_only=False,
                   forces: dict | None = None, smooth: bool = False) -> Residuals:
@@ -551,7 +564,7 @@ class ResidualPipeline:
             forces = {ch: self._resample(forces[ch]) for ch in FORCE_CHANNELS}
             forces_c = None
             first = {ch: forces[ch][0] for ch in FORCE_CHANNELS}
-        f3, f4 = self.simulate(p, forces, linear_part_only=linear_part_only, forces_c=forces_c)
+        f3, f4, x = self.simulate(p, forces, linear_part_only=linear_part_only, forces_c=forces_c)
         lin = linear_part_only
         U = self.U
         ch = {}
@@ -568,6 +581,20 @@ class ResidualPipeline:
                 fs = f3 if i == 0 else f4
                 meas = 0.0 if lin else k * self.s_f[name] + d * self.ds[name]
                 ch[f"spring{i + 1}"] = (fs - meas)[::U]
+        for i in (1, 2):
+            name = f"zeta{i}"
+            if name not in self.zeta_f:
+                continue
+            # tyre law f_i = k_i (z_i - zeta_i) + d_i (z_i' - zeta_i'), wheel states z_i simulated
+            # from the forces with pitch and heave prescribed (states [z1, z2, z1', z2'])
+            k, d = (p["k1"], p["d1"]) if i == 1 else (p["k2"], p["d2"])
+            # spline values at the fine nodes (the last node repeats its left neighbour: the end of
+            # the record is trimmed from the rows)
+            fi = forces[f"f{i}"] if forces is not None else np.append(forces_c[f"f{i}"][0], forces_c[f"f{i}"][0][-1])
+            zeta = 0.0 if lin else self.zeta_f[name]
+            dzeta = 0.0 if lin else self.dzeta[name]
+            model = k * (x[:, i - 1] - zeta) + d * (x[:, i + 1] - dzeta)
+            ch[f"tyre{i}"] = (fi - model)[::U]
         g, m3 = p["g"], p["m3"]
         f1s = p["m1"] * g + a * m3 * g / (a + b)
         f2s = p["m2"] * g + b * m3 * g / (a + b)
@@ -632,7 +659,8 @@ class _Problem:
         n, K = pipe.n, pipe.trim
         # rows kept per channel: moment/heave rows k = 1..n-2 (row j is sample j + 1), spring rows
         # are samples; the last K samples are left out (delays shift the record's end)
-        self.offset = {"moment": 1, "heave": 1, "spring1": 0, "spring2": 0, "static": 0}
+        self.offset = {"moment": 1, "heave": 1, "spring1": 0, "spring2": 0, "tyre1": 0, "tyre2": 0,
+                       "static": 0}
         self.rows = {}
         for nm in self.names:
             if nm == "static":
@@ -668,7 +696,8 @@ class _Problem:
         p = self.model
         src = {"moment": ("beta", lambda w: p["I"] * w * w), "heave": ("z3", lambda w: p["m3"] * w * w),
                "spring1": ("s1", lambda w: np.abs(p["k3"] + 1j * w * p["d3"])),
-               "spring2": ("s2", lambda w: np.abs(p["k4"] + 1j * w * p["d4"]))}
+               "spring2": ("s2", lambda w: np.abs(p["k4"] + 1j * w * p["d4"])),
+               }
         band = {}
         for nm in self.names:
             if nm not in src:
@@ -797,7 +826,7 @@ class _Problem:
             meat += Acc.T @ Acc
         return meat
 
-    def lowband_noise(self, r: np.ndarray, gains: dict | None = None) -> tuple[float, float]:
+    def lowband_noise(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None) -> tuple[float, float]:
         """Force-noise level from the residual's low band, and its effective degrees of freedom.
 
         White force noise reaches every residual across the whole band, with a spectrum known
@@ -808,8 +837,11 @@ class _Problem:
         sum r_lp^2 / sum (h_lp^2 per row). The first and last 5 % of each channel are left out.
         ``gains``: per force channel, the factor the correction puts on the measured samples
         (1 / scale): noise on the measured samples reaches the residual multiplied by it.
+        ``ir``: impulse responses of the fitted parameters (default: the model's); the residual
+        keeps the model's row weighting either way.
         """
         gains = gains or {}
+        ir = self.ir if ir is None else ir
         fs = 1.0 / self.pipe.h
         fc = lowband_cutoff(fs)
         sos = scipy.signal.butter(6, fc, fs=fs, output="sos")
@@ -825,7 +857,7 @@ class _Problem:
             xl = scipy.signal.sosfiltfilt(sos, x)[k]
             unit = 0.0
             for ch in FORCE_CHANNELS:
-                h = self.ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
+                h = ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
                 pad = np.zeros(int(4 * fs / fc))
                 hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
                 unit += float(np.sum(hls[(nm, ch)] ** 2))
@@ -1383,8 +1415,26 @@ def _describe(c: Cause, est: float) -> str:
 
 _CHANNEL_WORDS = {"moment": "enforced moment", "heave": "vertical enforced force",
                   "spring1": "front spring force residual", "spring2": "rear spring force residual",
+                  "tyre1": "front tyre force residual", "tyre2": "rear tyre force residual",
                   "static": "static load at the first sample"}
-_CHANNEL_UNITS = {"moment": "N m", "heave": "N", "spring1": "N", "spring2": "N", "static": "N"}
+_CHANNEL_UNITS = {"moment": "N m", "heave": "N", "spring1": "N", "spring2": "N", "tyre1": "N", "tyre2": "N",
+                  "static": "N"}
+
+
+def _telling_channel(prob: "_Problem", before: "Residuals", after: "Residuals", default: str) -> str:
+    """The residual channel where a correction shows most: the largest drop of the residual sum of
+    squares in units of the channel's noise (the enforced moment when nothing drops clearly)."""
+    best, best_drop = default, 0.0
+    for nm in prob.names:
+        if nm == "static":
+            continue
+        rows = prob.rows[nm]
+        a = before.channels[nm][:rows] / prob.noise_std[nm]
+        b = after.channels[nm][:rows] / prob.noise_std[nm]
+        drop = float(a @ a - b @ b)
+        if drop > best_drop * 1.5 or (best == default and drop > best_drop):
+            best, best_drop = nm, drop
+    return best
 
 
 def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=None,
@@ -1416,7 +1466,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     notes = []
     if dynamic:
         sigma, dof = prob.lowband_noise(
-            fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS})
+            fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
+            prob.impulse_responses(p_ext)[0])
         lo, hi = _chi2_sigma_interval(sigma, dof)
         noise_found = sigma > NOISE_MIN_N
         fc = lowband_cutoff(1.0 / run.dt)
@@ -1450,10 +1501,11 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         others = [j for j in range(len(fit.causes)) if j != i]
         p_o, corr_o = _apply(model, [fit.causes[j] for j in others], fit.theta[others])
         r_without = pipe.residuals(p_o, corr_o)
-        a_rms = _rms(kept(r_without, main))
-        b_rms = _rms(kept(res1, main))
-        ev = (f"{_describe(c, est)} explains the {_CHANNEL_WORDS[main]}: its RMS falls from "
-              f"{a_rms:.4g} to {b_rms:.4g} {_CHANNEL_UNITS[main]} when it is corrected "
+        ch_i = _telling_channel(prob, r_without, res1, main) if dynamic else main
+        a_rms = _rms(kept(r_without, ch_i))
+        b_rms = _rms(kept(res1, ch_i))
+        ev = (f"{_describe(c, est)} explains the {_CHANNEL_WORDS[ch_i]}: its RMS falls from "
+              f"{a_rms:.4g} to {b_rms:.4g} {_CHANNEL_UNITS[ch_i]} when it is corrected "
               f"(z = {abs(sel.z[i]):.1f}, noise level {sigma:.3g} N)")
         alts = sel.alternatives.get(c, [])
         if alts:
@@ -1515,8 +1567,11 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
 
     # ---- extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
+    if dynamic and fit.causes:
+        main = _telling_channel(prob, res0, res1, main)
     metric = {"moment": "enforced_moment_rms", "heave": "vertical_enforced_force_rms",
               "spring1": "spring_force_residual_rms", "spring2": "spring_force_residual_rms",
+              "tyre1": "tyre_force_residual_rms", "tyre2": "tyre_force_residual_rms",
               "static": "static_load_error_rms"}[main]
     gain = {"metric": metric, "before": _rms(kept(res0, main)), "after": _rms(kept(res1, main)),
             "unit": _CHANNEL_UNITS[main]}

@@ -42,6 +42,12 @@ def revealed_parameters(channels) -> tuple[str, ...]:
         keys += ["k3", "d3"]
     if "s2" in ch:
         keys += ["k4", "d4"]
+    # the tyre law needs the wheel positions: pitch and heave measured, and the road height
+    if "beta" in ch and "z3" in ch:
+        if "zeta1" in ch:
+            keys += ["k1", "d1"]
+        if "zeta2" in ch:
+            keys += ["k2", "d2"]
     return tuple(keys)
 
 
