@@ -611,19 +611,17 @@ class ResidualPipeline:
 # weighting, noise impulse responses, fitting
 
 
-def _hf_noise_sigma(f: np.ndarray) -> float:
-    """Robust white-noise level from the 4th difference (var = 70 sigma^2 for white noise);
-    an upper bound when the signal itself has content near the Nyquist frequency."""
-    d4 = np.diff(f, 4)
-    mad = np.median(np.abs(d4 - np.median(d4))) * 1.4826
-    return float(mad / math.sqrt(70.0))
-
-
 def _diff_sigma(x: np.ndarray, k: int) -> float:
     """Robust white-noise level from the k-th difference (var = C(2k, k) sigma^2 for white noise)."""
     d = np.diff(x, k)
     mad = np.median(np.abs(d - np.median(d))) * 1.4826
     return float(mad / math.sqrt(math.comb(2 * k, k)))
+
+
+def _hf_noise_sigma(f: np.ndarray) -> float:
+    """Robust white-noise level from the 4th difference; an upper bound when the signal itself
+    has content near the Nyquist frequency."""
+    return _diff_sigma(f, 4)
 
 
 def _motion_noise_sigma(x: np.ndarray) -> float:
