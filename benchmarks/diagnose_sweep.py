@@ -39,6 +39,8 @@ def main(argv=None):
     ap.add_argument("--channels", default=DEFAULT_CHANNELS,
                     help=f"channel sets, ';'-separated, each ','-separated (default {DEFAULT_CHANNELS!r})")
     ap.add_argument("--no-noise", action="store_true", help="runs without force noise")
+    ap.add_argument("--noise-size", choices=("drawn", "realistic", "small"), default="drawn",
+                    help="force noise of the drawn size class (default) or always of this one")
     ap.add_argument("--other-vehicle", action="store_true",
                     help="true vehicle and model from OTHER_VEHICLE instead of the seed's table")
     ap.add_argument("--json", help="write the counts to this JSON file")
@@ -59,6 +61,11 @@ def main(argv=None):
         size = str(rng.choice(["realistic", "small"]))
         nsys = int(rng.choice([0, 1, 1, 2]))
         effects = rg.draw_effects(seed, n_systematic=nsys, size=size, channels=chans, noise=not a.no_noise)
+        if a.noise_size != "drawn":
+            lo, hi = rg.SIZES[a.noise_size]["force_noise"]
+            for e in effects:
+                if e["cause"] == "force_noise":
+                    e["value"] = float(np.random.default_rng(seed + 1).uniform(lo, hi))
         speed = float(rng.uniform(8, 30))
         road = str(rng.choice(["A", "B", "C"]))
         cols, _ = rg.make_run(effects, model=model, duration=10.0, fs=fs, speed=speed, road_class=road,

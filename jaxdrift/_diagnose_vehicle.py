@@ -1161,10 +1161,12 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         alts = []
         for g_c, c, f_c in refined[1:]:
             if g_c >= gain - q:
-                alts.append((c, float(c.to_estimate(f_c.theta[-1]))))
+                se_c = math.sqrt(max(_covariance(prob, f_c.X, sigma2)[-1, -1], 0.0))
+                iv = _finding_for(c, f_c.theta[-1], se_c, _practical(c, pipe))["interval"]
+                alts.append((c, float(c.to_estimate(f_c.theta[-1])), iv))
         for g_lin, c in scores[3:]:
             if g_lin >= gain - q:
-                alts.append((c, None))
+                alts.append((c, None, None))
         alternatives[c_best] = alts
         chosen.append(c_best)
         fit = f_best
@@ -1173,7 +1175,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
             alts_b = alternatives.pop(_BOTH, [])
             fit = _normalise(prob, fit)
             new = next(c for c in fit.causes if c not in chosen)
-            alternatives[new] = [(a, e) for a, e in alts_b if a not in fit.causes]
+            alternatives[new] = [alt for alt in alts_b if alt[0] not in fit.causes]
             chosen = list(fit.causes)
         path.append(fit.rss)
     if dynamic and len(fit.causes) > 1:
@@ -1224,10 +1226,13 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
                 if abs(b[j]) * np.sqrt(X[:, j] @ X[:, j]) < 0.05 * nc:
                     continue
                 alts = alternatives.setdefault(cj, [])
-                if any(a == c for a, _ in alts):
+                if any(alt[0] == c for alt in alts):
                     continue
-                # the same span with c in place of cj: its estimate from the linear relation
-                alts.append((c, float(c.to_estimate(fit.theta[j] / b[j]))))
+                # the same span with c in place of cj: its estimate and standard error from the
+                # linear relation
+                se_c = math.sqrt(max(cov[j, j], 0.0)) / abs(b[j])
+                iv = _finding_for(c, fit.theta[j] / b[j], se_c, _practical(c, pipe))["interval"]
+                alts.append((c, float(c.to_estimate(fit.theta[j] / b[j])), iv))
                 if log is not None:
                     log.append(f"confounded: {c.label} can replace {cj.label}")
     # rank: most significant first
@@ -1400,6 +1405,22 @@ def _finding_for(c: Cause, theta: float, se: float, floor: float = 0.0) -> dict:
     return out
 
 
+def _alternatives_json(alts) -> list[dict]:
+    """``indistinguishable_from`` entries in the report's terms (an equal offset on both forces
+    is one entry per channel, as the contract names channels f1/f2)."""
+    out = []
+    for a, est, iv in alts:
+        for tgt in (FORCE_CHANNELS if a.target == "both" else (a.target,)):
+            d = {"parameter": tgt} if a.kind == "parameter_error" else {"channel": tgt}
+            d["cause"] = a.kind
+            if est is not None:
+                d["estimate"] = est
+            if iv is not None:
+                d["interval"] = [float(iv[0]), float(iv[1])]
+            out.append(d)
+    return out
+
+
 def _describe(c: Cause, est: float) -> str:
     if c.kind == "force_offset":
         where = "both forces" if c.target == "both" else c.target
@@ -1508,7 +1529,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         alts = sel.alternatives.get(c, [])
         if alts:
             ev += "; the data cannot tell it from " + ", ".join(
-                _describe(a, e) if e is not None else a.label for a, e in alts)
+                _describe(a, e) if e is not None else a.label for a, e, _ in alts)
         targets = [c.target] if not (c.kind == "force_offset" and c.target == "both") else list(FORCE_CHANNELS)
         for tgt in targets:
             f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i],
@@ -1516,9 +1537,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
             f["evidence"] = ev + "."
             f["z"] = float(abs(sel.z[i]))
             if alts:
-                f["indistinguishable_from"] = [
-                    {**({"parameter": a.target} if a.kind == "parameter_error" else {"channel": a.target}),
-                     "cause": a.kind, **({"estimate": e} if e is not None else {})} for a, e in alts]
+                f["indistinguishable_from"] = _alternatives_json(alts)
             findings.append(f)
     if not dynamic and sigma > 0:
         # forces only: the static load at the first sample is all there is to check

@@ -233,7 +233,8 @@ def score_report(report: dict, effects) -> dict:
     one of the leading findings (the report may not guess where the data cannot tell). Interval
     coverage is checked for every effect except those the report declares indistinguishable from
     another true effect (say an offset on f2 and m3 without z3): the data fix only a combination
-    of them. Returns ``{"first", "covered", "total", "misses"}`` (misses: readable lines).
+    of them. An effect named only as an alternative is checked against the alternative's
+    interval. Returns ``{"first", "covered", "total", "misses"}`` (misses: readable lines).
     """
     findings = report["findings"]
     got = [_target(f) for f in findings]
@@ -247,11 +248,15 @@ def score_report(report: dict, effects) -> dict:
         alt_t = {_target(a) for a in f.get("indistinguishable_from", [])}
         if _target(f) in truth and alt_t & truth:
             confounded |= {_target(f)} | (alt_t & truth)
+    # an effect named only as an alternative of a finding (m3 behind a g finding without z3) is
+    # checked against the interval the report gives that alternative
+    alt_entries = [a for f in findings for a in f.get("indistinguishable_from", []) if "interval" in a]
     covered = total = 0
     for e in effects:
         if _target(e) in confounded:
             continue
-        match = [f for f in findings if _target(f) == _target(e)]
+        match = [f for f in findings if _target(f) == _target(e)] or \
+            [a for a in alt_entries if _target(a) == _target(e)]
         total += 1
         inside = bool(match) and match[0]["interval"][0] <= e["value"] <= match[0]["interval"][1]
         covered += inside
