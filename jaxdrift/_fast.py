@@ -31,6 +31,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ._inputs import local_to_step
 from ._solve import Solution
 from ._tableau import DOPRI5
 
@@ -141,26 +142,28 @@ def solve_fixed_fast(
         if inputs.ndim != 2 or inputs.shape[0] != n_steps + 1:
             raise ValueError(f"inputs must have shape (n_steps + 1, m) = ({n_steps + 1}, m), got {inputs.shape}")
 
-        def rhs(t, y, u):
-            return jnp.asarray(f(t, y, u, args)).astype(dtype)
+        def rhs(t, y, u, a=args):
+            return jnp.asarray(f(t, y, u, a)).astype(dtype)
 
         u_init = inputs[0]
     else:
 
-        def rhs(t, y, u):
-            return jnp.asarray(f(t, y, args)).astype(dtype)
+        def rhs(t, y, u, a=args):
+            return jnp.asarray(f(t, y, a)).astype(dtype)
 
         u_init = jnp.zeros((0,), dtype)
 
     def step(carry, u1):
         i, y, k0, comp, u0 = carry
         t = jnp.asarray(t0f, tdt) + i.astype(tdt) * jnp.asarray(dtf, tdt)
+        # grid-aligned SampledSignals in args: read their two samples once per step
+        step_args = local_to_step(args, t0f, dtf, i)
         du = None if inputs is None else u1 - u0
         ks = [k0]
         for j in range(1, s):
             dy = sum(a[j][m] * ks[m] for m in range(j) if a[j][m] != 0.0)
             u = None if inputs is None else u0 + jnp.asarray(c[j], dtype) * du
-            ks.append(rhs(t + c[j] * dtf, y + h * dy, u))
+            ks.append(rhs(t + c[j] * dtf, y + h * dy, u, step_args))
         inc = h * sum(b[m] * ks[m] for m in range(s) if b[m] != 0.0)
         if compensated:
             d = inc - comp
@@ -169,7 +172,7 @@ def solve_fixed_fast(
         else:
             y_new = y + inc
         t_new = jnp.asarray(t0f, tdt) + (i + 1).astype(tdt) * jnp.asarray(dtf, tdt)
-        return (i + 1, y_new, rhs(t_new, y_new, u1), comp, u1 if inputs is not None else u0), None
+        return (i + 1, y_new, rhs(t_new, y_new, u1, step_args), comp, u1 if inputs is not None else u0), None
 
     k_init = rhs(jnp.asarray(t0f, tdt), y0, u_init if inputs is not None else None)
     if k_init.shape != y0.shape:
