@@ -1674,7 +1674,9 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
     * ``enforced_moment.png``: the enforced moment before/after against the inertia term I beta''
       (or the vertical enforced force against m3 z3'');
     * ``residual_envelope.png``: the residual after the fit against the 95 % noise-only band, and
-      the force-driven pitch error against the noise-only drift envelope.
+      the force-driven pitch error against the noise-only drift envelope;
+    * ``tyre_forces.png`` (runs with the road height): the tyre-law residual of each wheel before
+      and after, against the noise-only band.
     """
     import os
 
@@ -1759,6 +1761,26 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
         axes[-1, 0].set_xlabel("t [s]")
         fig.tight_layout()
         path = os.path.join(plots_dir, "residual_envelope.png")
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+
+    tyres = [nm for nm in prob.names if nm.startswith("tyre")]
+    if tyres:
+        fig, axes = plt.subplots(len(tyres), 1, figsize=(9, 3.2 * len(tyres)), squeeze=False, sharex=True)
+        for ax, nm in zip(axes[:, 0], tyres):
+            tt = t[:prob.rows[nm]]
+            band = 1.96 * sigma * prob.noise_std[nm]
+            ax.fill_between(tt, -band, band, color="0.8", alpha=0.7, label="95 % noise-only band")
+            ax.plot(tt, res0.channels[nm][:prob.rows[nm]], "C3", lw=0.6, label="model")
+            ax.plot(tt, res1.channels[nm][:prob.rows[nm]], "C0", lw=0.6, label="extended model")
+            wheel = "front" if nm == "tyre1" else "rear"
+            ax.set_ylabel(f"{wheel} tyre residual [N]")
+            ax.legend(loc="upper left", fontsize=8)
+        axes[0, 0].set_title("Measured wheel force minus the tyre law k (z - zeta) + d (z' - zeta')")
+        axes[-1, 0].set_xlabel("t [s]")
+        fig.tight_layout()
+        path = os.path.join(plots_dir, "tyre_forces.png")
         fig.savefig(path, dpi=110)
         plt.close(fig)
         paths.append(path)

@@ -347,7 +347,7 @@ def test_sensor_noise_on_the_measured_motion_is_filtered_out():
     # the tyre damper acts on the small tyre deflection rate: 25 % of it is about 10 N of force
     ({"cause": "parameter_error", "parameter": "d2", "value": 1.25}, 5.0),
 ])
-def test_tyre_parameters_from_road_height(hidden, noise):
+def test_tyre_parameters_from_road_height(hidden, noise, tmp_path):
     """With pitch, heave and the road height under the wheels the tyre law checks the measured
     forces directly, and the tyre parameters, which never enter the force-driven equations,
     become identifiable; without the road height they are reported as not identifiable."""
@@ -355,9 +355,10 @@ def test_tyre_parameters_from_road_height(hidden, noise):
     chans = ("beta", "z3", "zeta1", "zeta2")
     cols, _ = rg.make_run(effects, duration=8.0, fs=500.0, speed=20.0, road_class="B", seed=9,
                           channels=chans)
-    rep = dv.diagnose_vehicle_run(_run(cols), DEFAULT_MODEL, with_simulation=False)
+    rep = dv.diagnose_vehicle_run(_run(cols), DEFAULT_MODEL, plots_dir=tmp_path, with_simulation=False)
     _assert_diagnosed(rep, effects)
     assert rep["gain"]["metric"] == "tyre_force_residual_rms"
+    assert (tmp_path / "tyre_forces.png").stat().st_size > 10_000
     no_road = {k: v for k, v in cols.items() if not k.startswith("zeta")}
     rep2 = dv.diagnose_vehicle_run(_run(no_road), DEFAULT_MODEL, with_simulation=False)
     assert rep2["findings"][0]["cause"] == "force_noise"
