@@ -1,9 +1,9 @@
 """Seeded sweep of the vehicle diagnosis over hidden effects: how often the right cause comes first
 and how often the true values lie inside the reported 95 % intervals.
 
-Each draw picks a generator seed, a sampling rate, a channel set, an effect size ("realistic" or
-"small"), 0-2 systematic effects plus force noise (``jaxdrift._rungen.draw_effects``), a speed of
-8-30 m/s and an ISO 8608 class A-C road, makes the run with ``jaxdrift._rungen.make_run`` and
+Each draw (``jaxdrift._rungen.draw_sweep_case``, the slow test's draw) picks a generator seed, a
+sampling rate, a channel set, an effect size ("realistic" or "small"), 0-2 systematic effects plus
+force noise, a speed of 8-30 m/s and an ISO 8608 class A-C road, makes the run with ``jaxdrift._rungen.make_run`` and
 diagnoses it (without the force-driven simulation, which does not change the findings), and scores
 the report with ``jaxdrift._rungen.score_report`` (the slow test's rule). Prints every miss and a
 summary line; ``--json`` writes the counts.
@@ -55,21 +55,14 @@ def main(argv=None):
     rng = np.random.default_rng(a.seed)
     first_ok = covered = total = 0
     for k in range(a.n):
-        seed = int(rng.integers(10_000))
-        fs = float(rng.choice([200.0, 250.0, 500.0, 1000.0]))
-        chans = chan_sets[int(rng.integers(len(chan_sets)))]
-        size = str(rng.choice(["realistic", "small"]))
-        nsys = int(rng.choice([0, 1, 1, 2]))
-        effects = rg.draw_effects(seed, n_systematic=nsys, size=size, channels=chans, noise=not a.no_noise)
+        case = rg.draw_sweep_case(rng, chan_sets, noise=not a.no_noise)
+        effects, fs, chans = case["effects"], case["fs"], case["channels"]
         if a.noise_size != "drawn":
             lo, hi = rg.SIZES[a.noise_size]["force_noise"]
             for e in effects:
                 if e["cause"] == "force_noise":
-                    e["value"] = float(np.random.default_rng(seed + 1).uniform(lo, hi))
-        speed = float(rng.uniform(8, 30))
-        road = str(rng.choice(["A", "B", "C"]))
-        cols, _ = rg.make_run(effects, model=model, duration=10.0, fs=fs, speed=speed, road_class=road,
-                              seed=seed, channels=chans)
+                    e["value"] = float(np.random.default_rng(case["seed"] + 1).uniform(lo, hi))
+        cols, _ = rg.make_run(model=model, duration=10.0, **case)
         run = VehicleRun("run.csv", cols["t"], {c: np.asarray(v) for c, v in cols.items() if c != "t"})
         rep = dv.diagnose_vehicle_run(run, model, with_simulation=False)
         sc = rg.score_report(rep, effects)

@@ -1689,6 +1689,13 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
     t = run.t - run.t[0]
     paths = []
 
+    def save(fig, name):
+        fig.tight_layout()
+        path = os.path.join(plots_dir, name)
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
+        paths.append(path)
+
     if sims:
         rows = [c for c in ("beta", "z3") if run.has(c)]
         fig, axes = plt.subplots(len(rows), 1, figsize=(9, 3.2 * len(rows)), squeeze=False)
@@ -1705,11 +1712,7 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
             ax.legend(loc="upper left", fontsize=8)
         axes[-1, 0].set_xlabel("t [s]")
         axes[0, 0].set_title("Measured motion against the force-driven simulation")
-        fig.tight_layout()
-        path = os.path.join(plots_dir, "motion.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        paths.append(path)
+        save(fig, "motion.png")
 
     main = "moment" if "moment" in prob.names else ("heave" if "heave" in prob.names else None)
     if main is not None:
@@ -1730,11 +1733,7 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
         axes[1].set_ylabel(f"enforced [{unit}]")
         axes[1].set_xlabel("t [s]")
         axes[1].legend(loc="upper left", fontsize=8)
-        fig.tight_layout()
-        path = os.path.join(plots_dir, "enforced_moment.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        paths.append(path)
+        save(fig, "enforced_moment.png")
 
     nplot = (main is not None) + bool(sims and run.has("beta"))
     if nplot:
@@ -1759,11 +1758,7 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
             ax.set_ylabel("pitch error [deg]")
             ax.legend(loc="upper left", fontsize=8)
         axes[-1, 0].set_xlabel("t [s]")
-        fig.tight_layout()
-        path = os.path.join(plots_dir, "residual_envelope.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        paths.append(path)
+        save(fig, "residual_envelope.png")
 
     tyres = [nm for nm in prob.names if nm.startswith("tyre")]
     if tyres:
@@ -1779,9 +1774,5 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
             ax.legend(loc="upper left", fontsize=8)
         axes[0, 0].set_title("Measured wheel force minus the tyre law k (z - zeta) + d (z' - zeta')")
         axes[-1, 0].set_xlabel("t [s]")
-        fig.tight_layout()
-        path = os.path.join(plots_dir, "tyre_forces.png")
-        fig.savefig(path, dpi=110)
-        plt.close(fig)
-        paths.append(path)
+        save(fig, "tyre_forces.png")
     return paths

@@ -17,7 +17,8 @@ import numpy as np
 
 from ._csvio import DEFAULT_MODEL
 
-__all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES"]
+__all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES",
+           "draw_sweep_case", "score_report"]
 
 #: (low, high) magnitude of each effect kind; the sign is drawn separately where it matters
 SIZES = {
@@ -220,6 +221,26 @@ def make_run(effects=(), *, model: dict | None = None, duration: float = 20.0, f
     for c in channels:
         cols[c] = true[c]
     return cols, {"params": true_params, "signals": true}
+
+
+def draw_sweep_case(rng, channel_sets, *, noise: bool = True) -> dict:
+    """One case of the seeded hidden-effect sweep (the slow test, ``benchmarks/diagnose_sweep.py``).
+
+    Draws from ``rng`` (a ``numpy.random.Generator``), in this order: the generator seed, the
+    sampling rate (200, 250, 500 or 1000 Hz), one of ``channel_sets``, the size class, 0-2
+    systematic effects (:func:`draw_effects`, plus force noise if ``noise``), a speed of 8-30 m/s
+    and an ISO 8608 class A-C road. Returns the keyword arguments of :func:`make_run` (without
+    ``duration`` and ``model``) and ``effects``.
+    """
+    seed = int(rng.integers(10_000))
+    fs = float(rng.choice([200.0, 250.0, 500.0, 1000.0]))
+    chans = tuple(channel_sets[int(rng.integers(len(channel_sets)))])
+    size = str(rng.choice(["realistic", "small"]))
+    nsys = int(rng.choice([0, 1, 1, 2]))
+    effects = draw_effects(seed, n_systematic=nsys, size=size, channels=chans, noise=noise)
+    speed = float(rng.uniform(8, 30))
+    road = str(rng.choice(["A", "B", "C"]))
+    return {"effects": effects, "fs": fs, "speed": speed, "road_class": road, "seed": seed, "channels": chans}
 
 
 def _target(d: dict) -> tuple:

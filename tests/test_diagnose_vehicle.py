@@ -273,14 +273,9 @@ def test_hidden_effect_sweep():
                  ("beta", "beta_rate", "z3", "s1", "s2")]
     n, ok_first, covered, total = 24, 0, 0, 0
     for _ in range(n):
-        seed = int(rng.integers(10_000))
-        fs = float(rng.choice([200.0, 250.0, 500.0, 1000.0]))
-        chans = chan_sets[int(rng.integers(len(chan_sets)))]
-        size = str(rng.choice(["realistic", "small"]))
-        nsys = int(rng.choice([0, 1, 1, 2]))
-        effects = rg.draw_effects(seed, n_systematic=nsys, size=size, channels=chans)
-        cols, _ = rg.make_run(effects, duration=10.0, fs=fs, speed=float(rng.uniform(8, 30)),
-                              road_class=str(rng.choice(["A", "B", "C"])), seed=seed, channels=chans)
+        case = rg.draw_sweep_case(rng, chan_sets)
+        effects, fs, chans = case["effects"], case["fs"], case["channels"]
+        cols, _ = rg.make_run(duration=10.0, **case)
         rep = dv.diagnose_vehicle_run(_run(cols), DEFAULT_MODEL, with_simulation=False)
         # a true cause counts as found when it heads the list, or when a leading finding says
         # the data cannot tell it apart from that finding (e.g. m3 against equal offsets on both
