@@ -280,6 +280,19 @@ def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, metho
     dtc = _concrete(dt)
     if dtc is None or t0c is None or t1c is None:
         raise ValueError("fixed-step mode needs concrete t0, t1 and dt (they fix the number of steps)")
+    if method == "dopri5" and ts_concrete is not None:
+        # The usual Monte-Carlo case: saves on the step grid at a constant stride (statistics
+        # every 0.1 s with 1 ms steps). A scan over save intervals around a scan over steps needs
+        # no save bookkeeping inside the step and no dense output (measured: docs/performance.md).
+        from ._fast import save_grid, solve_fixed_fast
+
+        try:
+            save_grid(t0c, t1c, dtc, ts_concrete)
+        except ValueError:
+            pass
+        else:
+            return solve_fixed_fast(f, y0, t0c, t1c, dt=dtc, saveat=ts_concrete, args=args,
+                                    dtype=y0.dtype, compensated=False)
     n_steps = int(np.ceil((t1c - t0c) / dtc * (1 - 1e-12)))
     per_step = _max_saves_per_step(ts_concrete, dtc)
     tab = DOPRI5
