@@ -20,7 +20,6 @@ ROWS = (("fixed/jaxdrift", "fixed 1 ms"), ("fixed/jaxdrift-fast", "fixed 1 ms, f
 
 def render(res: dict) -> str:
     cases, cfg = res["cases"], res["config"]
-    mem = res.get("memory") or {}
     lines = [
         f"Half-car noisy-force study, {cfg['T']:g} s at {cfg['fs']:g} Hz, {cfg['paths']} paths per call, "
         f"float64 unless noted, {res['machine']['cpu_count']}-core machine (load average "
@@ -37,10 +36,13 @@ def render(res: dict) -> str:
         vs_d = f"{c['vs_diffrax']:.2f}x" if c.get("vs_diffrax") else ""
         vs_s = f"{c['vs_scipy']:.0f}x" if c.get("vs_scipy") else ""
         lines.append(f"| {label} | {c['path_steps_per_s']:.3g} | {vs_d} | {vs_s} |")
-    if mem.get("peak_rss_bytes"):
-        lines += ["", f"{mem['paths']:,} paths x {mem['T']:g} s at 1 kHz with statistics every 0.1 s "
-                      f"({mem['mode']} mode, chunks of {mem['chunk_size']}): peak RSS "
-                      f"{mem['peak_rss_bytes'] / 2**30:.2f} GiB."]
+    mems = [m for m in (res.get("memory"), res.get("memory_float64")) if m and m.get("peak_rss_bytes")]
+    if mems:
+        m0 = mems[0]
+        lines += ["", f"{m0['paths']:,} paths x {m0['T']:g} s at 1 kHz with statistics every 0.1 s "
+                      f"(chunks of {m0['chunk_size']}), peak RSS: "
+                      + ", ".join(f"{m['mode']} mode {m['peak_rss_bytes'] / 2**30:.2f} GiB in {m['wall_s']:.0f} s"
+                                  for m in mems) + "."]
     return "\n".join(lines)
 
 

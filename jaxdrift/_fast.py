@@ -95,7 +95,7 @@ def solve_fixed_fast(
     inputs=None,
     dtype=jnp.float32,
     compensated: bool = True,
-    unroll: int = 1,
+    unroll: int = 5,
 ) -> Solution:
     """Fixed-step DOPRI5 of ``y' = f(t, y, args)`` in ``dtype`` with an optional Kahan update.
 
@@ -114,7 +114,9 @@ def solve_fixed_fast(
         dtype: state dtype (float32 for the fast mode; float64 gives the plain solver with the
             same loop structure, useful as a reference).
         compensated: Kahan-compensated summation of the state update.
-        unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``).
+        unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``). The default 5
+            measured 188-198 against 231-240 ns per path-step for 1 (half-car, float32, 256 paths);
+            float64 gained nothing (338-340 for 1, 2 and 5), so the engine's fixed-step mode uses 1.
 
     Returns:
         A :class:`jaxdrift.Solution` (``ys`` in ``dtype``; ``result`` always 0).

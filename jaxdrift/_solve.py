@@ -292,7 +292,7 @@ def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, metho
             pass
         else:
             return solve_fixed_fast(f, y0, t0c, t1c, dt=dtc, saveat=ts_concrete, args=args,
-                                    dtype=y0.dtype, compensated=False)
+                                    dtype=y0.dtype, compensated=False, unroll=1)
     n_steps = int(np.ceil((t1c - t0c) / dtc * (1 - 1e-12)))
     per_step = _max_saves_per_step(ts_concrete, dtc)
     tab = DOPRI5

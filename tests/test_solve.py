@@ -362,3 +362,28 @@ def test_grid_aligned_signals_read_per_step_equal_the_full_signal(kind):
     full = jax.jit(lambda t0: jaxdrift.solve_ode(f, jnp.ones(2), 0.0, 0.6, saveat=ts, dt=0.01,
                                                  args=jaxdrift.SampledSignal(t0, 0.01, u, kind=kind)))(-0.05)
     np.testing.assert_allclose(np.asarray(fast.ys), np.asarray(full.ys), rtol=0, atol=1e-13)
+
+
+def test_fixed_step_grid_saves_take_the_nested_loop_and_match_the_general_loop():
+    # Saves on the step grid at a constant stride run a scan over save intervals around a scan
+    # over steps; traced save times (unknown at trace time) take the general loop with dense
+    # output. Both must give the same values, and both the exact solution to DOPRI5 accuracy.
+    def f(t, y, args):
+        return jnp.array([y[1], -4.0 * y[0] + jnp.cos(3.0 * t)])
+
+    def exact(t):
+        # y'' + 4 y = cos 3t, y(0) = 1, y'(0) = 0
+        c = 1.0 + 1.0 / 5.0
+        return np.stack([c * np.cos(2 * t) - np.cos(3 * t) / 5.0, -2 * c * np.sin(2 * t) + 3 * np.sin(3 * t) / 5.0], -1)
+
+    ts = np.linspace(0.0, 2.0, 21)
+    y0 = jnp.array([1.0, 0.0])
+    nested = jaxdrift.solve_ode(f, y0, 0.0, 2.0, saveat=ts, dt=0.01)
+    general = jax.jit(lambda s: jaxdrift.solve_ode(f, y0, 0.0, 2.0, saveat=s, dt=0.01))(jnp.asarray(ts))
+    np.testing.assert_allclose(np.asarray(nested.ys), np.asarray(general.ys), rtol=0, atol=1e-13)
+    np.testing.assert_allclose(np.asarray(nested.ys), exact(ts), rtol=0, atol=1e-9)
+    assert int(nested.num_accepted) == 200
+    jaxpr = str(jax.make_jaxpr(lambda y: jaxdrift.solve_ode(f, y, 0.0, 2.0, saveat=ts, dt=0.01).ys)(y0))
+    assert jaxpr.count("scan[") >= 2
+    jaxpr_general = str(jax.make_jaxpr(lambda y: jaxdrift.solve_ode(f, y, 0.0, 2.0, saveat=ts[:-1] + 0.005, dt=0.01).ys)(y0))
+    assert jaxpr_general.count("scan[") == 1
