@@ -21,10 +21,8 @@ Reproduce (about a minute)::
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -32,12 +30,9 @@ sys.path.insert(0, str(HERE))
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--paths", type=int, default=256)
-    ap.add_argument("--seconds", type=float, default=5.0)
-    ap.add_argument("--rounds", type=int, default=3)
-    ap.add_argument("--out", default="adaptive-cost", help="result name under benchmarks/results/")
-    a = ap.parse_args(argv)
+    from _common import timing_parser
+
+    a = timing_parser(__doc__, out="adaptive-cost", seconds=5.0).parse_args(argv)
 
     import jax
 
@@ -45,7 +40,7 @@ def main(argv=None):
     import jax.numpy as jnp
 
     import jaxdrift
-    from _common import machine_info, write_results
+    from _common import interleaved_best, machine_info, write_results
     from _setup import force_rhs, paper_study
     from jaxdrift._halfcar import force_driven_rhs
 
@@ -80,17 +75,8 @@ def main(argv=None):
     cases = {"adaptive, sampled forces": adaptive, "adaptive, constant forces": adaptive_const,
              "fixed 1 ms, sampled forces": fixed, "fixed 1 ms, forces interpolated per stage": fixed_per_stage}
     fns = {k: jax.jit(jax.vmap(f)) for k, f in cases.items()}
-    idx = jnp.arange(a.paths)
-    for k, f in fns.items():
-        print(f"compiling {k} ...", flush=True)
-        jax.block_until_ready(f(idx))
-    best, steps = {k: float("inf") for k in fns}, {}
-    for r in range(a.rounds):
-        for k, f in fns.items():
-            t = time.perf_counter()
-            _, s = jax.block_until_ready(f(idx + (r + 1) * a.paths))
-            best[k] = min(best[k], time.perf_counter() - t)
-            steps[k] = float(jnp.sum(s))
+    best, outs = interleaved_best(fns, jnp.arange(a.paths), a.rounds)
+    steps = {k: float(jnp.sum(outs[k][1])) for k in fns}
     ns = {k: best[k] / steps[k] * 1e9 for k in fns}
     rows = ["| case | ns per path-step | steps per path |", "|---|---:|---:|"]
     rows += [f"| {k} | {ns[k]:.0f} | {steps[k] / a.paths:.0f} |" for k in fns]

@@ -23,10 +23,8 @@ Reproduce (about 3 minutes on 2 idle cores)::
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -34,12 +32,10 @@ sys.path.insert(0, str(HERE))
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--paths", type=int, default=256, help="paths per call (default 256)")
-    ap.add_argument("--seconds", type=float, default=10.0, help="simulated seconds (default 10)")
-    ap.add_argument("--rounds", type=int, default=3, help="interleaved timing rounds (default 3)")
+    from _common import timing_parser
+
+    ap = timing_parser(__doc__, out="floor", seconds=10.0)
     ap.add_argument("--dtype", choices=("float64", "float32"), default="float64")
-    ap.add_argument("--out", default="floor", help="result name under benchmarks/results/")
     a = ap.parse_args(argv)
 
     import jax
@@ -49,7 +45,7 @@ def main(argv=None):
     import jax.numpy as jnp
 
     import jaxdrift
-    from _common import machine_info, write_results
+    from _common import interleaved_best, machine_info, write_results
     from _setup import paper_study
     from jaxdrift._halfcar import force_driven_rhs
 
@@ -99,17 +95,7 @@ def main(argv=None):
         cases[f"jaxdrift/{kind}"] = jd(kind)
         cases[f"diffrax/{kind}"] = dfx(kind)
     fns = {k: jax.jit(jax.vmap(f)) for k, f in cases.items()}
-    idx = jnp.arange(B, dtype=jnp.int32)
-    for k, f in fns.items():
-        print(f"compiling {k} ...", flush=True)
-        jax.block_until_ready(f(idx))
-    best = {k: float("inf") for k in fns}
-    for r in range(a.rounds):
-        for k, f in fns.items():
-            t = time.perf_counter()
-            jax.block_until_ready(f(idx + (r + 1) * B))
-            best[k] = min(best[k], time.perf_counter() - t)
-        print(f"round {r + 1}: " + ", ".join(f"{k} {best[k]:.2f} s" for k in fns), flush=True)
+    best, _ = interleaved_best(fns, jnp.arange(B, dtype=jnp.int32), a.rounds)
     ns = {k: v / (B * n_steps) * 1e9 for k, v in best.items()}
     ev = {kind: (ns[f"jaxdrift/{kind}"] - ns["jaxdrift/trivial"]) / 6.0 for kind in ("model", "linear")}
     ev_d = {kind: (ns[f"diffrax/{kind}"] - ns["diffrax/trivial"]) / 6.0 for kind in ("model", "linear")}

@@ -21,10 +21,8 @@ Reproduce (about 3 minutes on 2 cores)::
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -32,12 +30,9 @@ sys.path.insert(0, str(HERE))
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--paths", type=int, default=256, help="paths per call (default 256)")
-    ap.add_argument("--seconds", type=float, default=8.0, help="simulated seconds (default 8)")
-    ap.add_argument("--rounds", type=int, default=3, help="interleaved timing rounds (default 3)")
-    ap.add_argument("--out", default="rhs-variants", help="result name under benchmarks/results/")
-    a = ap.parse_args(argv)
+    from _common import timing_parser
+
+    a = timing_parser(__doc__, out="rhs-variants", seconds=8.0).parse_args(argv)
 
     import jax
 
@@ -46,7 +41,7 @@ def main(argv=None):
     import jax.numpy as jnp
 
     import jaxdrift
-    from _common import machine_info, write_results
+    from _common import interleaved_best, machine_info, write_results
     from _setup import paper_study
     from jaxdrift._halfcar import force_driven_rhs
 
@@ -119,18 +114,7 @@ def main(argv=None):
     solvers = {"engine float64": engine, "fast float32, unroll 1": fast(1), "fast float32, unroll 5": fast(5),
                "diffrax float64": dfx}
     fns = {(s, v): jax.jit(jax.vmap(mk(fields[v]))) for s, mk in solvers.items() for v in fields}
-    idx = jnp.arange(a.paths, dtype=jnp.int32)
-    outs = {}
-    for k, f in fns.items():
-        print(f"compiling {k} ...", flush=True)
-        outs[k] = jax.block_until_ready(f(idx))
-    best = {k: float("inf") for k in fns}
-    for r in range(a.rounds):
-        for k, f in fns.items():
-            t = time.perf_counter()
-            jax.block_until_ready(f(idx))
-            best[k] = min(best[k], time.perf_counter() - t)
-        print(f"round {r + 1} done", flush=True)
+    best, outs = interleaved_best(fns, jnp.arange(a.paths, dtype=jnp.int32), a.rounds)
     ns = {k: v / (a.paths * n_steps) * 1e9 for k, v in best.items()}
     diff = {k: float(jnp.max(jnp.abs(outs[k] - outs[(k[0], "model")]))) for k in fns}
     rows = ["| integrator | " + " | ".join(f"{v} ns/path-step" for v in fields) + " | largest pitch difference from model |",
