@@ -19,6 +19,7 @@ detection threshold is 5 standard errors).
 Reproduce::
 
     python benchmarks/diagnose_attitude_sweep.py --seed 1 --n 30
+    python benchmarks/diagnose_attitude_sweep.py --seed 3 --n 30 --effects drift
 """
 
 from __future__ import annotations
@@ -36,7 +37,10 @@ sys.path.insert(0, str(HERE))
 AXES = ("wx", "wy", "wz")
 
 
-def draw(rng):
+EFFECTS = ("none", "bias", "scale", "drift", "bias+scale")
+
+
+def draw(rng, effects=EFFECTS):
     """One run's configuration: keyword arguments of make_attitude_run and the true effects."""
     import numpy as np
 
@@ -44,7 +48,7 @@ def draw(rng):
     T = float(rng.uniform(30, 150))
     arw = float(np.exp(rng.uniform(np.log(1e-4), np.log(2e-3))))
     ref = ["all", 10, 40][int(rng.integers(3))]
-    effect = ["none", "bias", "scale", "drift", "bias+scale"][int(rng.integers(5))]
+    effect = effects[int(rng.integers(len(effects)))]
     ch = int(rng.integers(3))
     kw = dict(duration=T, rate_hz=rate, arw=arw, reference=ref, road_rms_deg=float(rng.uniform(0.3, 1.5)),
               curve_rate=float(rng.uniform(0.05, 0.3)))
@@ -79,6 +83,8 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--seed", type=int, default=1, help="master seed of the draws (default 1)")
     ap.add_argument("--n", type=int, default=30, help="number of runs (default 30)")
+    ap.add_argument("--effects", default=",".join(EFFECTS),
+                    help=f"comma-separated effects to draw from (default {','.join(EFFECTS)})")
     ap.add_argument("--json", default=None, help="write the per-run results to this JSON file")
     a = ap.parse_args(argv)
 
@@ -87,11 +93,14 @@ def main(argv=None):
     from jaxdrift._attgen import make_attitude_run
     from jaxdrift._diagnose_attitude import run_attitude_diagnosis
 
+    effects = tuple(a.effects.split(","))
+    if not set(effects) <= set(EFFECTS):
+        ap.error(f"--effects: choose from {', '.join(EFFECTS)}")
     rng = np.random.default_rng(a.seed)
     rows, n_first, n_in, n_total = [], 0, 0, 0
     with tempfile.TemporaryDirectory() as tmp:
         for r in range(a.n):
-            effect, kw, truth = draw(rng)
+            effect, kw, truth = draw(rng, effects)
             t0 = time.perf_counter()
             tr = make_attitude_run(tmp, 1000 + 100 * a.seed + r, name=f"r{r}", **kw)
             rep = run_attitude_diagnosis(tr["paths"]["run"], None, None)
