@@ -60,7 +60,12 @@ class StepController(eqx.Module):
 
 
 class Solution(eqx.Module):
-    """The values at the requested save times and the solver statistics."""
+    """The values at the requested save times and the solver statistics.
+
+    ``num_accepted``/``num_rejected`` count the steps taken. The fixed-step mode with save times on
+    the step grid stops at the last save time (nothing after it is returned), so there it counts
+    the steps up to that time, not to ``t1``.
+    """
 
     ts: jax.Array
     ys: jax.Array
