@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-NOTEBOOKS = ["section2_pointmass.py", "section4_halfcar.py"]
+NOTEBOOKS = ["section2_pointmass.py", "section4_halfcar.py", "drift_variance.py"]
 
 
 @pytest.mark.parametrize("name", NOTEBOOKS)
@@ -26,6 +26,7 @@ def test_notebook_is_a_valid_percent_notebook(name):
 @pytest.mark.parametrize("name, expected", [
     ("section2_pointmass.py", ["fig2_pointmass_std.png"]),
     ("section4_halfcar.py", ["fig4_road_forces.png", "fig8_enforced_moment.png", "summary.json"]),
+    ("drift_variance.py", ["drift_variance.png", "drift_variance.json"]),
 ])
 def test_notebook_runs_in_small_configuration(name, expected, tmp_path):
     env = dict(os.environ, JAXDRIFT_NOTEBOOK_SMALL="1", JAXDRIFT_NOTEBOOK_OUT=str(tmp_path), MPLBACKEND="Agg",
