@@ -882,17 +882,33 @@ class _Problem:
 
 
 #: bounds of the internal coordinates during fitting (far beyond any plausible effect)
+def _theta_bounds(c: Cause, pipe) -> tuple[float, float]:
+    """The physically plausible range of a cause's parameter (offsets are unbounded)."""
+    if c.kind == "parameter_error":
+        return -0.6, 1.5
+    if c.kind == "force_scale":
+        return -0.5, 1.0
+    if c.kind == "force_delay":
+        lim = 0.5 * pipe.trim * pipe.h
+        return -lim, lim
+    return -math.inf, math.inf
+
+
 def _clip_theta(causes, theta, pipe):
     th = np.array(theta, dtype=float)
     for i, c in enumerate(causes):
-        if c.kind == "parameter_error":
-            th[i] = min(max(th[i], -0.6), 1.5)
-        elif c.kind == "force_scale":
-            th[i] = min(max(th[i], -0.5), 1.0)
-        elif c.kind == "force_delay":
-            lim = 0.5 * pipe.trim * pipe.h
-            th[i] = min(max(th[i], -lim), lim)
+        lo, hi = _theta_bounds(c, pipe)
+        th[i] = min(max(th[i], lo), hi)
     return th
+
+
+def _at_bound(c: Cause, theta: float, pipe) -> bool:
+    """The fit pushed the cause to the edge of its plausible range: the data want more than any
+    real effect of this kind gives, so the cause does not explain them (its interval there would
+    be meaningless)."""
+    lo, hi = _theta_bounds(c, pipe)
+    tol = 1e-9 * (1.0 + abs(theta))
+    return theta <= lo + tol or theta >= hi - tol
 
 
 @dataclass
@@ -1076,6 +1092,8 @@ def _swap_pass(prob: _Problem, fit: "Fit", active, sig2: float, log=None) -> "Fi
             best = None
             for _, c in scores[:2]:
                 f_c = _gauss_newton(prob, others + [c], np.append(f_o.theta, 0.0))
+                if any(_at_bound(cc, th, prob.pipe) for cc, th in zip(f_c.causes, f_c.theta)):
+                    continue
                 v = _systematic_rss(prob, f_c, sig2)
                 if best is None or v < best[0]:
                     best = (v, c, f_c)
@@ -1138,7 +1156,14 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
         refined = []
         for gain_lin, c in scores[:3]:
             f_c = _gauss_newton(prob, chosen + [c], np.append(fit.theta, 0.0))
+            if _at_bound(c, f_c.theta[-1], pipe):
+                if log is not None:
+                    log.append(f"step {len(chosen) + 1}: {c.label} left out: its fit sits at the edge of "
+                               f"its plausible range ({c.to_estimate(f_c.theta[-1]):.6g})")
+                continue
             refined.append((_systematic_rss(prob, fit, sig2_now) - _systematic_rss(prob, f_c, sig2_now), c, f_c))
+        if not refined:
+            break
         refined.sort(key=lambda s: -s[0])
         gain, c_best, f_best = refined[0]
         p = len(f_best.causes)
@@ -1196,7 +1221,9 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
             break
         cov = _covariance(prob, fit.X, sigma2)
         z = fit.theta / np.sqrt(np.maximum(np.diag(cov), 1e-300))
-        small = [i for i, c in enumerate(fit.causes) if abs(fit.theta[i]) < _practical(c, pipe)]
+        # causes too small to matter, and causes pushed to the edge of their plausible range
+        small = [i for i, c in enumerate(fit.causes)
+                 if abs(fit.theta[i]) < _practical(c, pipe) or _at_bound(c, fit.theta[i], pipe)]
         weakest = small[0] if small else int(np.argmin(np.abs(z)))
         if not small and z[weakest] ** 2 >= crit:
             break
@@ -1581,6 +1608,15 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     if dynamic and not run.has("z3"):
         notes.append("Without z3 a chassis-mass error, a gravity error and equal offsets on both "
                      "forces differ only in their small dynamic signature.")
+    motion_col = {"moment": "beta", "heave": "z3", "spring1": "s1", "spring2": "s2"}
+    for name, (fc, _) in sorted(prob.pipe.band.items()):
+        col = motion_col.get(name)
+        if col is None:
+            continue
+        notes.append(f"White sensor noise on the measured {col} (about {_motion_noise_sigma(run[col]):.2g} "
+                     f"{'rad' if col == 'beta' else 'm'} per sample) swamps its derivatives: the {name} "
+                     f"residual is compared below {fc:.3g} Hz only, and what shows only above that "
+                     "(wheel hop, fast delays) is not seen.")
 
     # ---- extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
