@@ -16,6 +16,7 @@ Examples (the numbers quoted in ``docs/diagnosis.md``)::
         --channels "beta,z3,zeta1,zeta2;beta,z3,s1,s2,zeta1,zeta2;beta,z3,zeta1"
     python benchmarks/diagnose_sweep.py --seed 2024 --n 24 --no-noise
     python benchmarks/diagnose_sweep.py --seed 11 --n 14 --other-vehicle
+    python benchmarks/diagnose_sweep.py --seed 2024 --n 24 --motion-noise 1e-6 1e-4
 """
 
 from __future__ import annotations
@@ -43,6 +44,9 @@ def main(argv=None):
                     help="force noise of the drawn size class (default) or always of this one")
     ap.add_argument("--other-vehicle", action="store_true",
                     help="true vehicle and model from OTHER_VEHICLE instead of the seed's table")
+    ap.add_argument("--motion-noise", type=float, nargs=2, metavar=("LO", "HI"), default=None,
+                    help="add white sensor noise to the measured motion (beta, z3, s1, s2 in rad or m; "
+                         "beta_rate 10x), its level drawn log-uniformly in [LO, HI] per run")
     ap.add_argument("--json", help="write the counts to this JSON file")
     a = ap.parse_args(argv)
 
@@ -63,6 +67,14 @@ def main(argv=None):
                 if e["cause"] == "force_noise":
                     e["value"] = float(np.random.default_rng(case["seed"] + 1).uniform(lo, hi))
         cols, _ = rg.make_run(model=model, duration=10.0, **case)
+        if a.motion_noise:
+            mrng = np.random.default_rng(case["seed"] + 3)
+            lo, hi = a.motion_noise
+            level = float(np.exp(mrng.uniform(np.log(lo), np.log(hi))))
+            for c in chans:
+                if c in ("beta", "z3", "s1", "s2", "beta_rate"):
+                    cols[c] = np.asarray(cols[c]) + (10.0 if c == "beta_rate" else 1.0) * level * \
+                        mrng.standard_normal(len(cols["t"]))
         run = VehicleRun("run.csv", cols["t"], {c: np.asarray(v) for c, v in cols.items() if c != "t"})
         rep = dv.diagnose_vehicle_run(run, model, with_simulation=False)
         sc = rg.score_report(rep, effects)
@@ -70,7 +82,8 @@ def main(argv=None):
         covered += sc["covered"]
         total += sc["total"]
         for m in sc["misses"]:
-            print(f"run {k}: fs={fs:g} channels={chans}: {m}", flush=True)
+            extra = f" motion noise {level:.1e}" if a.motion_noise else ""
+            print(f"run {k}: fs={fs:g} channels={chans}{extra}: {m}", flush=True)
     line = (f"{a.n} runs: true causes first in {first_ok}; {covered} of {total} assessable true values "
             f"inside their 95 % intervals ({100.0 * covered / max(total, 1):.0f} %)")
     print(line)
