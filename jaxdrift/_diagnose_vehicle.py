@@ -630,6 +630,18 @@ def _hf_noise_sigma(f: np.ndarray) -> float:
     return _diff_sigma(f, 4)
 
 
+def _force_hf_noise(run) -> tuple[float, float, float]:
+    """Force-noise level from both forces' 4th differences, with its 95 % interval (an upper
+    bound: the forces' own content near the Nyquist frequency counts as noise)."""
+    sigma = float(np.sqrt(np.mean([_hf_noise_sigma(run[ch]) ** 2 for ch in FORCE_CHANNELS])))
+    half = 1.96 * 1.6 / math.sqrt(2 * (run.n - 4))
+    return sigma, sigma * (1 - half), sigma * (1 + half)
+
+
+#: residual channel -> the measured motion it differentiates
+MOTION_COLUMN = {"moment": "beta", "heave": "z3", "spring1": "s1", "spring2": "s2"}
+
+
 def _motion_noise_sigma(x: np.ndarray) -> float:
     """White sensor noise on a measured motion channel, or 0 where none shows.
 
@@ -698,18 +710,16 @@ class _Problem:
         pipe = self.pipe
         run = pipe.run
         h = pipe.h
-        sig_f = float(np.sqrt(np.mean([_hf_noise_sigma(run[ch]) ** 2 for ch in FORCE_CHANNELS])))
-        sig_f = max(sig_f, NOISE_MIN_N)
+        sig_f = max(_force_hf_noise(run)[0], NOISE_MIN_N)
         p = self.model
-        src = {"moment": ("beta", lambda w: p["I"] * w * w), "heave": ("z3", lambda w: p["m3"] * w * w),
-               "spring1": ("s1", lambda w: np.abs(p["k3"] + 1j * w * p["d3"])),
-               "spring2": ("s2", lambda w: np.abs(p["k4"] + 1j * w * p["d4"])),
-               }
+        gains = {"moment": lambda w: p["I"] * w * w, "heave": lambda w: p["m3"] * w * w,
+                 "spring1": lambda w: np.abs(p["k3"] + 1j * w * p["d3"]),
+                 "spring2": lambda w: np.abs(p["k4"] + 1j * w * p["d4"])}
         band = {}
         for nm in self.names:
-            if nm not in src:
+            if nm not in gains:
                 continue
-            col, gain = src[nm]
+            col, gain = MOTION_COLUMN[nm], gains[nm]
             sig_m = _motion_noise_sigma(run[col])
             if sig_m <= 0:
                 continue
@@ -900,7 +910,6 @@ class _Problem:
         return math.sqrt(max(sigma2, 0.0)), dof
 
 
-#: bounds of the internal coordinates during fitting (far beyond any plausible effect)
 def _theta_bounds(c: Cause, pipe) -> tuple[float, float]:
     """The physically plausible range of a cause's parameter (offsets are unbounded)."""
     if c.kind == "parameter_error":
@@ -1145,7 +1154,7 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
     crit = scipy.stats.chi2.ppf(1 - ALPHA / max(len(active), 1), 1)
     fit = base
     path = [base.rss]
-    hf_sigma = float(np.sqrt(np.mean([_hf_noise_sigma(pipe.run[ch]) ** 2 for ch in FORCE_CHANNELS])))
+    hf_sigma = _force_hf_noise(pipe.run)[0]
     alternatives = {}
     chosen: list[Cause] = []
     dynamic = n_rows > 2
@@ -1540,22 +1549,18 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                      f"fit has the power that white force noise of {sigma:.3g} N would give it "
                      f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
                      f"to {sel.sigma:.3g} N including the comparison's own discretisation error)")
-        hf = float(np.sqrt(np.mean([_hf_noise_sigma(run[ch]) ** 2 for ch in FORCE_CHANNELS])))
+        hf, hf_lo, hf_hi = _force_hf_noise(run)
         if pipe.band and hf < sigma:
             # Sensor noise on the measured motion left in the band adds to the residual's low band
             # and reads as force noise; the forces' own 4th differences do not see it. Both are
             # upper bounds: the smaller one is reported.
-            m = 2 * (run.n - 4)
-            lo, hi = hf * (1 - 1.96 * 1.6 / math.sqrt(m)), hf * (1 + 1.96 * 1.6 / math.sqrt(m))
+            lo, hi = hf_lo, hf_hi
             noise_src = (f"the 4th differences of the forces give {hf:.3g} N; the residual's low band, "
                          f"which here also holds the sensor noise of the measured motion, gives "
                          f"{sigma:.3g} N; the smaller of these two upper bounds is reported")
             sigma = hf
     else:
-        hf = [_hf_noise_sigma(run[ch]) for ch in FORCE_CHANNELS]
-        sigma = float(np.sqrt(np.mean(np.square(hf))))
-        m = 2 * (run.n - 4)
-        lo, hi = sigma * (1 - 1.96 * 1.6 / math.sqrt(m)), sigma * (1 + 1.96 * 1.6 / math.sqrt(m))
+        sigma, lo, hi = _force_hf_noise(run)
         noise_found = sigma > NOISE_MIN_N
         noise_src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "
                      f"forces give {sigma:.3g} N, an upper bound (the forces' own content near the "
@@ -1638,11 +1643,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     if dynamic and not run.has("z3"):
         notes.append("Without z3 a chassis-mass error, a gravity error and equal offsets on both "
                      "forces differ only in their small dynamic signature.")
-    motion_col = {"moment": "beta", "heave": "z3", "spring1": "s1", "spring2": "s2"}
     for name, (fc, _) in sorted(prob.pipe.band.items()):
-        col = motion_col.get(name)
-        if col is None:
-            continue
+        col = MOTION_COLUMN[name]
         notes.append(f"White sensor noise on the measured {col} (about {_motion_noise_sigma(run[col]):.2g} "
                      f"{'rad' if col == 'beta' else 'm'} per sample) swamps its derivatives: the {name} "
                      f"residual is compared below {fc:.3g} Hz only, and what shows only above that "
