@@ -16,12 +16,12 @@ import jax.numpy as jnp
 import numpy as np
 
 import jaxdrift
-from jaxdrift._halfcar import contact_forces, force_driven_rhs, road_driven_rhs, static_equilibrium
-from jaxdrift._params import HalfCarParams
-from jaxdrift._road import iso8608_road
+from jaxdrift.models._halfcar import contact_forces, force_driven_rhs, road_driven_rhs, static_equilibrium
+from jaxdrift.models._params import HalfCarParams
+from jaxdrift.models._road import iso8608_road
 
 SPEED = 20.0  # m/s
-ROAD_CLASS = "D"  # as jaxdrift._study.StudyConfig (forces closest to the paper's Fig. 4)
+ROAD_CLASS = "D"  # as jaxdrift.studies._study.StudyConfig (forces closest to the paper's Fig. 4)
 ROAD_SEED = 0
 NOISE_FRACTION = 0.002  # sigma = 0.002 f_max (section 4.2)
 

@@ -1,6 +1,6 @@
 """Benchmark: diagnose a 60 s, 1 kHz vehicle run (the issue's bar: under a minute on this machine).
 
-Generates a run with a hidden effect (``jaxdrift._rungen``, not timed), then times
+Generates a run with a hidden effect (``jaxdrift.studies._rungen``, not timed), then times
 ``jaxdrift diagnose`` phases: reading the CSV, the cause selection (residual pipeline), the whole
 report including the engine's force-driven simulations (first call: includes JAX compilation;
 second call: warm). Writes JSON and a markdown table.
@@ -28,9 +28,9 @@ def main() -> None:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from jaxdrift import _diagnose_vehicle as dv
-    from jaxdrift import _rungen as rg
-    from jaxdrift._csvio import DEFAULT_MODEL, read_vehicle_run, write_vehicle_run
+    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+    from jaxdrift.studies import _rungen as rg
+    from jaxdrift.io._csvio import DEFAULT_MODEL, read_vehicle_run, write_vehicle_run
 
     effects = [{"cause": "force_offset", "channel": "f1", "value": 50.0},
                {"cause": "force_noise", "value": 20.0}]

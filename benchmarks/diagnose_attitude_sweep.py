@@ -6,7 +6,7 @@ every 10th or 40th row, road roughness and curve rate, and one of: nothing but n
 channel (12 to 90 times ``N / sqrt(T)``, i.e. at least 2.4 times the detection threshold
 ``5 N / sqrt(T)``); a scale error of 1-5 % on one channel; a bias random walk of 2e-4 to 2e-3
 rad/s/sqrt(s) on one channel; a bias and a scale together. The run is written by
-``jaxdrift._attgen.make_attitude_run`` and diagnosed by ``run_attitude_diagnosis``.
+``jaxdrift.studies._attgen.make_attitude_run`` and diagnosed by ``run_attitude_diagnosis``.
 
 Scored per run: ``first`` (the true systematic causes, with their channels, are the leading
 findings; for a noise-only run the noise finding is first) and, for every true effect and the noise
@@ -90,8 +90,8 @@ def main(argv=None):
 
     import numpy as np
 
-    from jaxdrift._attgen import make_attitude_run
-    from jaxdrift._diagnose_attitude import run_attitude_diagnosis
+    from jaxdrift.studies._attgen import make_attitude_run
+    from jaxdrift.diagnosis.attitude._diagnose import run_attitude_diagnosis
 
     effects = tuple(a.effects.split(","))
     if not set(effects) <= set(EFFECTS):

@@ -1,11 +1,11 @@
 """Seeded sweep of the vehicle diagnosis over hidden effects: how often the right cause comes first
 and how often the true values lie inside the reported 95 % intervals.
 
-Each draw (``jaxdrift._rungen.draw_sweep_case``, the slow test's draw) picks a generator seed, a
+Each draw (``jaxdrift.studies._rungen.draw_sweep_case``, the slow test's draw) picks a generator seed, a
 sampling rate, a channel set, an effect size ("realistic" or "small"), 0-2 systematic effects plus
-force noise, a speed of 8-30 m/s and an ISO 8608 class A-C road, makes the run with ``jaxdrift._rungen.make_run`` and
+force noise, a speed of 8-30 m/s and an ISO 8608 class A-C road, makes the run with ``jaxdrift.studies._rungen.make_run`` and
 diagnoses it (without the force-driven simulation, which does not change the findings), and scores
-the report with ``jaxdrift._rungen.score_report`` (the slow test's rule). Prints every miss and a
+the report with ``benchmarks/_scoring.score_report`` (the slow test's rule). Prints every miss and a
 summary line; ``--json`` writes the counts.
 
 Examples (the numbers quoted in ``docs/diagnosis.md``)::
@@ -25,6 +25,8 @@ import argparse
 import json
 
 import numpy as np
+
+from _scoring import score_report
 
 #: a vehicle unlike the seed's (heavier, longer, softer), to check nothing is tuned to the default
 OTHER_VEHICLE = dict(a=1.3, b=1.5, m1=40.0, m2=45.0, m3=1400.0, I=2200.0, k1=3e5, k2=3e5, k3=6e4,
@@ -50,9 +52,9 @@ def main(argv=None):
     ap.add_argument("--json", help="write the counts to this JSON file")
     a = ap.parse_args(argv)
 
-    from jaxdrift import _diagnose_vehicle as dv
-    from jaxdrift import _rungen as rg
-    from jaxdrift._csvio import DEFAULT_MODEL, VehicleRun
+    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+    from jaxdrift.studies import _rungen as rg
+    from jaxdrift.io._csvio import DEFAULT_MODEL, VehicleRun
 
     model = dict(OTHER_VEHICLE if a.other_vehicle else DEFAULT_MODEL)
     chan_sets = [tuple(c.split(",")) for c in a.channels.split(";")]
@@ -77,7 +79,7 @@ def main(argv=None):
                         mrng.standard_normal(len(cols["t"]))
         run = VehicleRun("run.csv", cols["t"], {c: np.asarray(v) for c, v in cols.items() if c != "t"})
         rep = dv.diagnose_vehicle_run(run, model, with_simulation=False)
-        sc = rg.score_report(rep, effects)
+        sc = score_report(rep, effects)
         first_ok += sc["first"]
         covered += sc["covered"]
         total += sc["total"]

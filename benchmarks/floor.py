@@ -47,7 +47,7 @@ def main(argv=None):
     import jaxdrift
     from _common import interleaved_best, machine_info, write_results
     from _setup import paper_study
-    from jaxdrift._halfcar import force_driven_rhs
+    from jaxdrift.models._halfcar import force_driven_rhs
 
     st = paper_study(T=a.seconds)
     p = st.params

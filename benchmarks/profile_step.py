@@ -48,8 +48,8 @@ def main():
 
     import jaxdrift
     from _setup import force_rhs
-    from jaxdrift._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
-    from jaxdrift._params import HalfCarParams
+    from jaxdrift.models._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
+    from jaxdrift.models._params import HalfCarParams
 
     p = HalfCarParams()
     n_paths, K = 1024, 2000

@@ -5,9 +5,9 @@ Reproduce: python benchmarks/solver_drift_check.py   (prints steps and pitch err
 import numpy as np, jax, jax.numpy as jnp
 jax.config.update("jax_enable_x64", True)
 from scipy.integrate import solve_ivp
-from jaxdrift._study import StudyConfig, virtual_measurement, simulate_forces, SOLVER_LOOSE
-from jaxdrift._road import iso8608_road
-from jaxdrift._halfcar import force_driven_rhs, static_equilibrium
+from jaxdrift.studies._study import StudyConfig, virtual_measurement, simulate_forces, SOLVER_LOOSE
+from jaxdrift.models._road import iso8608_road
+from jaxdrift.models._halfcar import force_driven_rhs, static_equilibrium
 from jaxdrift import SampledSignal
 cfg = StudyConfig()
 p = cfg.params

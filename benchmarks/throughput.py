@@ -143,7 +143,7 @@ def _jax_cases(study, n_paths, repeats, which):
 
     import jaxdrift
     from _setup import force_rhs
-    from jaxdrift._halfcar import force_driven_rhs
+    from jaxdrift.models._halfcar import force_driven_rhs
 
     p = study.params
     rhs = force_rhs(p)

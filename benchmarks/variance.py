@@ -40,7 +40,7 @@ LEVEL = 0.95
 def _row(t, mc_var, n, closed=None, prop=None):
     import numpy as np
 
-    from jaxdrift._variance import variance_interval
+    from jaxdrift.analysis._variance import variance_interval
 
     lo, hi = variance_interval(mc_var, n, LEVEL)
     row = {"t": float(t), "mc_var": float(mc_var), "ci": [float(lo), float(hi)], "n_paths": int(n)}
@@ -158,7 +158,7 @@ def quaternion(n_paths, T, chunk):
     import numpy as np
 
     import jaxdrift
-    from jaxdrift._quaternion import omega_matrix
+    from jaxdrift.models._quaternion import omega_matrix
 
     sigma_m, dt = 0.1, 1e-3  # the seed's section 3.2 example
     n = int(round(T / dt)) + 1
@@ -226,7 +226,7 @@ def quaternion(n_paths, T, chunk):
 
 def _flag(r, name):
     """'yes' inside the 95 % interval; otherwise say whether it is inside the 99.9 % one."""
-    from jaxdrift._variance import variance_interval
+    from jaxdrift.analysis._variance import variance_interval
 
     if r[f"{name}_inside"]:
         return "yes"

@@ -3,7 +3,7 @@ the diagnosis report and a figure.
 
     python examples/make_vehicle_example.py
 
-The "measurement" is a virtual one (jaxdrift._rungen: the road-driven half-car on an ISO 8608
+The "measurement" is a virtual one (jaxdrift.studies._rungen: the road-driven half-car on an ISO 8608
 class B road with hills, 10 s at 200 Hz, 20 m/s). Hidden in it: the true chassis pitch inertia is
 7 % below the model's, the rear force sensor reads 50 N high, and both forces carry white noise of
 15 N. The model file is the seed's table. The report is then produced by the command line:
@@ -30,8 +30,8 @@ HIDDEN = [
 
 
 def main() -> None:
-    from jaxdrift import _rungen as rg
-    from jaxdrift._csvio import DEFAULT_MODEL, write_vehicle_run
+    from jaxdrift.studies import _rungen as rg
+    from jaxdrift.io._csvio import DEFAULT_MODEL, write_vehicle_run
 
     cols, _ = rg.make_run(HIDDEN, duration=10.0, fs=200.0, speed=20.0, road_class="B", seed=4,
                           channels=("beta", "z3"))

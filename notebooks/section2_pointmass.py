@@ -43,7 +43,7 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import jaxdrift
-from jaxdrift._pointmass import chi2_interval, plot_pointmass, run_pointmass_study
+from jaxdrift.studies._pointmass import chi2_interval, plot_pointmass, run_pointmass_study
 
 SMALL = os.environ.get("JAXDRIFT_NOTEBOOK_SMALL", "") not in ("", "0")
 OUT = os.environ.get("JAXDRIFT_NOTEBOOK_OUT", "paper-out")

@@ -4,15 +4,15 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from jaxdrift._accel_array import (
+from jaxdrift.models._accel_array import (
     angle_error_std_closed_form,
     check_positions,
     reconstruct,
     simulate_array,
 )
-from jaxdrift._attgen import DEFAULT_POSITIONS
-from jaxdrift._ins import vehicle_motion
-from jaxdrift._quaternion import (
+from jaxdrift.studies._attgen import DEFAULT_POSITIONS
+from jaxdrift.models._ins import vehicle_motion
+from jaxdrift.models._quaternion import (
     quat_conjugate_np,
     quat_log_np,
     quat_multiply_np,
@@ -73,8 +73,8 @@ def test_noise_free_reconstruction_recovers_the_motion():
 
 def test_gravity_correction_cancels_in_relative_accelerations():
     """(3.3): a tilted body at rest reads g e3 - S^T g e3 on every sensor; M = A R^+ = 0."""
-    from jaxdrift._accel_array import m_matrix
-    from jaxdrift._quaternion import euler_to_quat_np, rotation_matrix_np
+    from jaxdrift.models._accel_array import m_matrix
+    from jaxdrift.models._quaternion import euler_to_quat_np, rotation_matrix_np
 
     S = rotation_matrix_np(euler_to_quat_np(np.array([[0.1, -0.2, 0.7]])))
     acc = simulate_array(S, np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 3)), DEFAULT_POSITIONS)

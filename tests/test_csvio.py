@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from jaxdrift import cli
-from jaxdrift._csvio import (DEFAULT_MODEL, MIN_SAMPLES, InputError, read_model,
+from jaxdrift.io._csvio import (DEFAULT_MODEL, MIN_SAMPLES, InputError, read_model,
                              read_vehicle_run, write_vehicle_run)
 
 

@@ -10,8 +10,8 @@ import os
 import numpy as np
 import pytest
 
-from jaxdrift._attgen import DEFAULT_POSITIONS, make_attitude_run, write_attitude_csv
-from jaxdrift._diagnose_attitude import run_attitude_diagnosis
+from jaxdrift.studies._attgen import DEFAULT_POSITIONS, make_attitude_run, write_attitude_csv
+from jaxdrift.diagnosis.attitude._diagnose import run_attitude_diagnosis
 from jaxdrift.cli import UsageError
 
 SYSTEMATIC = {"gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid"}
@@ -279,8 +279,8 @@ def test_cli_accel_array_small(tmp_path):
 
 def test_reference_made_by_holding_the_rates(tmp_path):
     """Another sampling convention: the reference integrates each rate held over its step (exp map)."""
-    from jaxdrift._ins import gyro_errors, vehicle_motion
-    from jaxdrift._quaternion import integrate_rates_np
+    from jaxdrift.models._ins import gyro_errors, vehicle_motion
+    from jaxdrift.models._quaternion import integrate_rates_np
 
     m = vehicle_motion(131, 41.0, road_rms_deg=0.8)
     dt = 0.005

@@ -3,7 +3,7 @@
 Oracles: quadrature for the exact discretisation; a true run from scipy (``generators_scipy``, the
 seed's equations written out independently and integrated by LSODA) on which every residual must
 vanish; the seed-level closed form of the early pitch drift for the noise envelope. Hidden
-effects are drawn by :func:`jaxdrift._rungen.draw_effects` from fixed seeds (kind, channel or
+effects are drawn by :func:`jaxdrift.studies._rungen.draw_effects` from fixed seeds (kind, channel or
 parameter, size), the runs made by both generators, and the report must name the right cause
 first, contain the true value in its 95 % interval, and show a positive gain.
 """
@@ -21,10 +21,13 @@ import scipy.linalg
 from scipy.integrate import quad_vec
 
 import generators_scipy as gs
-from jaxdrift import _diagnose_vehicle as dv
-from jaxdrift import _rungen as rg
+
+sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "benchmarks"))
+from _scoring import score_report  # noqa: E402  (the sweeps' scorer lives with the benchmarks)
+from jaxdrift.diagnosis.vehicle import _diagnose as dv
+from jaxdrift.studies import _rungen as rg
 from jaxdrift import cli
-from jaxdrift._csvio import DEFAULT_MODEL, VehicleRun, write_vehicle_run
+from jaxdrift.io._csvio import DEFAULT_MODEL, VehicleRun, write_vehicle_run
 
 
 def _run(cols, path="run.csv"):
@@ -138,7 +141,7 @@ def test_noise_pitch_envelope_matches_early_closed_form():
 
 
 # ---------------------------------------------------------------------------------------------
-# hidden effects, engine generator (jaxdrift._rungen)
+# hidden effects, engine generator (jaxdrift.studies._rungen)
 
 # (seed, fs, speed, road, channels, size, n_systematic, noise)
 ENGINE_CASES = [
@@ -236,14 +239,14 @@ def test_cli_dispatches_attitude_runs(tmp_path, monkeypatch, capsys):
     run.write_text("t,wx,wy,wz\n0,0,0,0\n0.01,0,0,0\n")
     report = tmp_path / "r.json"
     calls = []
-    fake = types.ModuleType("jaxdrift._diagnose_attitude")
+    fake = types.ModuleType("jaxdrift.diagnosis.attitude._diagnose")
 
     def run_attitude_diagnosis(run_path, sensors_path, plots_dir):
         calls.append((run_path, sensors_path, plots_dir))
         return {"schema": "jaxdrift.diagnosis/1", "kind": "attitude", "findings": [{"cause": "none"}]}
 
     fake.run_attitude_diagnosis = run_attitude_diagnosis
-    monkeypatch.setitem(sys.modules, "jaxdrift._diagnose_attitude", fake)
+    monkeypatch.setitem(sys.modules, "jaxdrift.diagnosis.attitude._diagnose", fake)
     rc = cli.main(["diagnose", str(run), "--sensors", "s.json", "--json", str(report)])
     assert rc == 0 and calls == [(str(run), "s.json", None)]
     assert json.loads(report.read_text())["kind"] == "attitude"
@@ -256,7 +259,7 @@ def test_cli_dispatches_attitude_runs(tmp_path, monkeypatch, capsys):
     rc = cli.main(["diagnose", str(run), "--json", str(report2)])
     assert rc == 2 and not report2.exists() and "line 3, column wx" in capsys.readouterr().err
 
-    monkeypatch.setitem(sys.modules, "jaxdrift._diagnose_attitude", None)  # import fails
+    monkeypatch.setitem(sys.modules, "jaxdrift.diagnosis.attitude._diagnose", None)  # import fails
     rc = cli.main(["diagnose", str(run), "--json", str(report2)])
     assert rc == 1 and not report2.exists()
     assert "attitude diagnosis is not available" in capsys.readouterr().err
@@ -281,7 +284,7 @@ def test_hidden_effect_sweep():
         # the data cannot tell it apart from that finding (e.g. m3 against equal offsets on both
         # forces without z3): the spec asks for exactly that report instead of a guess; two true
         # effects declared indistinguishable from each other have no separate intervals to check
-        sc = rg.score_report(rep, effects)
+        sc = score_report(rep, effects)
         ok_first += sc["first"]
         covered += sc["covered"]
         total += sc["total"]

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from jaxdrift._halfcar import (
+from jaxdrift.models._halfcar import (
     contact_forces,
     enforced_moment,
     equilibrium_forces,
@@ -22,7 +22,7 @@ from jaxdrift._halfcar import (
     spring_forces,
     static_equilibrium,
 )
-from jaxdrift._params import (
+from jaxdrift.models._params import (
     PAPER_PERTURBATION,
     HalfCarParams,
     random_perturbed_models,

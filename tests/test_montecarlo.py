@@ -1,4 +1,4 @@
-"""Tests of jaxdrift._montecarlo: statistics against exact values, invariance, sharding, errors.
+"""Tests of jaxdrift.ensemble._montecarlo: statistics against exact values, invariance, sharding, errors.
 
 The toy path is an Ornstein-Uhlenbeck process (exact discretisation, so its mean and variance are
 known in closed form) and a scaled random walk, both built from ``path_normals``.
@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from jaxdrift import SampledSignal, solve_ode
-from jaxdrift._montecarlo import monte_carlo
-from jaxdrift._noise import path_normals
+from jaxdrift.ensemble._montecarlo import monte_carlo
+from jaxdrift.ensemble._noise import path_normals
 
 KEY = jax.random.key(7)
 DT = 0.01
@@ -432,7 +432,7 @@ def test_automatic_chunk_size_rule():
     """The rule behind chunk_size=None, on a stub compilation with known memory per path."""
     from types import SimpleNamespace
 
-    from jaxdrift._montecarlo import _chunk_size_from_budget
+    from jaxdrift.ensemble._montecarlo import _chunk_size_from_budget
 
     class Stub:
         def __init__(self, per_path_bytes):

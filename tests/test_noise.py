@@ -1,4 +1,4 @@
-"""Tests of jaxdrift._noise: reproducibility contract, distribution, input effects."""
+"""Tests of jaxdrift.ensemble._noise: reproducibility contract, distribution, input effects."""
 
 import jax
 import jax.numpy as jnp
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from jaxdrift._noise import (
+from jaxdrift.ensemble._noise import (
     BLOCK_SIZE,
     apply_input_effects,
     path_normals,

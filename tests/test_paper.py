@@ -13,9 +13,9 @@ import pytest
 from scipy.integrate import solve_ivp
 from test_halfcar import a4_matrix_rhs  # the paper's matrix form (A.4) in numpy
 
-from jaxdrift._params import HalfCarParams
-from jaxdrift._road import RoadProfile, iso8608_road
-from jaxdrift._study import (
+from jaxdrift.models._params import HalfCarParams
+from jaxdrift.models._road import RoadProfile, iso8608_road
+from jaxdrift.studies._study import (
     SOLVER_FIXED,
     SOLVER_LOOSE,
     StudyConfig,
@@ -145,7 +145,7 @@ def test_mismatched_inputs_raise(measured):
         virtual_measurement(P, inputs, 2 * T)
     with pytest.raises(ValueError, match="3 models but 2 sigmas"):
         run_force_paths(vm, np.asarray(vm.ts)[::100], [P, P, P], [0.0, 1.0])
-    from jaxdrift._inputs import SampledSignal
+    from jaxdrift.solvers._inputs import SampledSignal
 
     one_channel = SampledSignal(0.0, 1e-3, jnp.zeros((10, 1)))
     with pytest.raises(ValueError, match="2 channels"):

@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from jaxdrift._params import PointMassParams
-from jaxdrift._pointmass import (
+from jaxdrift.models._params import PointMassParams
+from jaxdrift.studies._pointmass import (
     chi2_interval,
     euler_variance,
     pointmass_monte_carlo,

@@ -8,7 +8,8 @@ import scipy.linalg
 from scipy import stats
 from scipy.spatial.transform import Rotation
 
-from jaxdrift import _quaternion as Q
+from jaxdrift.models import _quaternion as Q
+from jaxdrift.analysis._attitude_paths import integrate_rates, quaternion_sde_paths
 
 RNG = np.random.default_rng(20261122)
 
@@ -65,7 +66,7 @@ def test_expmap_exact_euler_first_order_dopri_accurate():
     T = 2.0
     exact = scipy.linalg.expm(0.5 * T * np.asarray(Q.omega_matrix(w))) @ q0
     n = 200
-    qs = np.asarray(Q.integrate_rates(q0, np.tile(w, (n + 1, 1)), T / n, method="expmap"))
+    qs = np.asarray(integrate_rates(q0, np.tile(w, (n + 1, 1)), T / n, method="expmap"))
     np.testing.assert_allclose(qs[-1], exact, atol=1e-13)
     np.testing.assert_allclose(np.linalg.norm(qs, axis=1), 1.0, atol=1e-14)
     np.testing.assert_allclose(Q.integrate_rates_np(q0, np.tile(w, (n + 1, 1)), T / n)[-1], exact, atol=1e-12)
@@ -73,14 +74,14 @@ def test_expmap_exact_euler_first_order_dopri_accurate():
     errs = []
     for n in (100, 200, 400):
         dt = T / n
-        qe = np.asarray(Q.integrate_rates(q0, np.tile(w, (n + 1, 1)), dt, method="euler"))
+        qe = np.asarray(integrate_rates(q0, np.tile(w, (n + 1, 1)), dt, method="euler"))
         np.testing.assert_allclose(np.sum(qe[-1] ** 2), (1 + w @ w * dt**2 / 4) ** n, rtol=1e-12)
         errs.append(np.linalg.norm(qe[-1] - exact))
-    qr = np.asarray(Q.integrate_rates(q0, np.tile(w, (401, 1)), T / 400, method="euler", renormalize=True))
+    qr = np.asarray(integrate_rates(q0, np.tile(w, (401, 1)), T / 400, method="euler", renormalize=True))
     np.testing.assert_allclose(np.linalg.norm(qr, axis=1), 1.0, atol=1e-14)
     slope = np.polyfit(np.log([100, 200, 400]), np.log(errs), 1)[0]
     assert -1.1 < slope < -0.9
-    qd = np.asarray(Q.integrate_rates(q0, np.tile(w, (201, 1)), T / 200, method="dopri5", rtol=1e-10, atol=1e-12))
+    qd = np.asarray(integrate_rates(q0, np.tile(w, (201, 1)), T / 200, method="dopri5", rtol=1e-10, atol=1e-12))
     np.testing.assert_allclose(qd[-1], exact, atol=1e-8)
 
 
@@ -96,7 +97,7 @@ def test_numpy_helpers_agree_with_jax():
     np.testing.assert_allclose(np.asarray(Q.quat_to_euler(Q.euler_to_quat(ang))), ang, atol=1e-12)
     # the doubling prefix product equals the sequential scan
     w = RNG.normal(size=(1000, 3))
-    np.testing.assert_allclose(Q.integrate_rates_np(q[0], w, 1e-3), np.asarray(Q.integrate_rates(q[0], w, 1e-3)), atol=1e-13)
+    np.testing.assert_allclose(Q.integrate_rates_np(q[0], w, 1e-3), np.asarray(integrate_rates(q[0], w, 1e-3)), atol=1e-13)
     a = np.asarray(Q.rotation_angle_between(q, p))
     np.testing.assert_allclose(a, Q.rotation_angle_between_np(q, p), atol=1e-14)
     ref = (Rotation.from_quat(q[:, [1, 2, 3, 0]]).inv() * Rotation.from_quat(p[:, [1, 2, 3, 0]])).magnitude()
@@ -111,7 +112,7 @@ def single_axis_paths():
     key = jax.random.key(7)
     out = {}
     for scheme in ("euler_maruyama", "heun", "expmap"):
-        out[scheme] = Q.quaternion_sde_paths(key, NP, T1, DT, SIG, scheme=scheme, axes=(0,), n_save=11)
+        out[scheme] = quaternion_sde_paths(key, NP, T1, DT, SIG, scheme=scheme, axes=(0,), n_save=11)
     return out
 
 
@@ -153,8 +154,8 @@ def test_angle_error_std_grows_like_sigma_sqrt_t():
     tt = np.arange(n_steps) * dt
     omega = np.stack([0.3 * np.sin(2 * tt), 0.2 * np.cos(3 * tt), 0.5 + 0.0 * tt], 1)
     key = jax.random.key(11)
-    ts, qs, _ = Q.quaternion_sde_paths(key, n_paths, t1, dt, sig, scheme="expmap", omega=omega, n_save=5)
-    _, q_true, _ = Q.quaternion_sde_paths(key, 1, t1, dt, 0.0, scheme="expmap", omega=omega, n_save=5)
+    ts, qs, _ = quaternion_sde_paths(key, n_paths, t1, dt, sig, scheme="expmap", omega=omega, n_save=5)
+    _, q_true, _ = quaternion_sde_paths(key, 1, t1, dt, 0.0, scheme="expmap", omega=omega, n_save=5)
     qs = np.asarray(qs)
     q_true = np.asarray(q_true)[0]
     # error rotation in the body frame: S_true^T S_noisy

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.signal import welch
 
-from jaxdrift._road import (
+from jaxdrift.models._road import (
     ISO8608_GD0,
     WheelInputs,
     iso8608_psd,

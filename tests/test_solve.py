@@ -10,8 +10,8 @@ import scipy.linalg
 from scipy.integrate import solve_ivp
 
 import jaxdrift
-from jaxdrift._solve import _dense_coeffs, _stages
-from jaxdrift._tableau import DOPRI5, ButcherTableau
+from jaxdrift.solvers._solve import _dense_coeffs, _stages
+from jaxdrift.solvers._tableau import DOPRI5, ButcherTableau
 
 # ---------------------------------------------------------------- tableau
 

@@ -9,7 +9,7 @@ import scipy.integrate
 import scipy.linalg
 
 import jaxdrift
-from jaxdrift._variance import (
+from jaxdrift.analysis._variance import (
     halfcar_free_mode_covariance,
     halfcar_free_modes,
     point_mass_covariance,
@@ -71,7 +71,7 @@ def test_point_mass_eta_continuity_and_2_11():
 
 
 def test_quaternion_closed_forms_match_the_attitude_module():
-    from jaxdrift import _quaternion as quat
+    from jaxdrift.models import _quaternion as quat
 
     s, dt, t = 0.1, 1e-3, np.array([1.0, 60.0, 600.0])
     sigma = s * np.sqrt(dt)
@@ -229,8 +229,8 @@ def test_monte_carlo_point_mass_within_chi_square():
 def test_halfcar_free_modes_are_rigid_motions():
     # Independent check of R: the linearised force-driven vector field (jacfwd of the model's own
     # code) has no stiffness or damping along the rigid motions.
-    from jaxdrift._halfcar import force_driven_rhs
-    from jaxdrift._params import HalfCarParams
+    from jaxdrift.models._halfcar import force_driven_rhs
+    from jaxdrift.models._params import HalfCarParams
 
     p = HalfCarParams(a=1.3, m1=20.0)
     Mr, G, R = halfcar_free_modes(p)
@@ -250,8 +250,8 @@ def test_propagated_covariance_linear_halfcar_free_modes_exact():
     # In the linear model the mass-weighted rigid coordinates q = M_r^-1 R^T M z are exactly
     # double-integrated force noise, so the propagated covariance projected on them is the t^3 law
     # for every t (an asymmetric car, so heave and pitch are coupled through M_r).
-    from jaxdrift._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
-    from jaxdrift._params import HalfCarParams
+    from jaxdrift.models._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
+    from jaxdrift.models._params import HalfCarParams
 
     p = HalfCarParams(a=1.3, m1=20.0)
     f1, f2, _, _ = equilibrium_forces(p)
@@ -276,8 +276,8 @@ def test_monte_carlo_halfcar_fast_mode_vs_float64_and_propagated():
     # (1) the float32 + Kahan fast mode on the same noise as the float64 engine: per-path
     #     differences far below the spread; (2) both ensembles' variances of z3 and beta contain the
     #     propagated (linearised) variance within the 99.9 % chi-square interval.
-    from jaxdrift._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
-    from jaxdrift._params import HalfCarParams
+    from jaxdrift.models._halfcar import equilibrium_forces, force_driven_rhs, static_equilibrium
+    from jaxdrift.models._params import HalfCarParams
 
     p = HalfCarParams()
     f1, f2, _, _ = equilibrium_forces(p)

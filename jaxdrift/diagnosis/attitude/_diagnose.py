@@ -32,7 +32,7 @@ import sys
 import numpy as np
 from scipy import stats
 
-from ._quaternion import (
+from ...models._quaternion import (
     cumulative_quat_product_np,
     integrate_rates_np,
     quat_conjugate_np,
@@ -70,7 +70,7 @@ G = 9.81
 
 
 def _usage_error(msg):
-    from .cli import UsageError
+    from ...errors import UsageError
 
     return UsageError(msg)
 
@@ -247,7 +247,7 @@ def read_sensors(path, n_expected=None):
         raise _usage_error(f"{path}: {r.shape[0]} sensor(s); the array needs at least 4 (m + 1 >= 4, section 3.1)")
     if n_expected is not None and r.shape[0] != n_expected:
         raise _usage_error(f"{path}: {r.shape[0]} positions but the run has {n_expected} accelerometers (a1x..a{n_expected}z)")
-    from ._accel_array import check_positions
+    from ...models._accel_array import check_positions
 
     msg = check_positions(r)
     if msg:

@@ -32,7 +32,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._halfcar import (
+from ..models._halfcar import (
     contact_forces,
     enforced_moment,
     force_driven_rhs,
@@ -41,12 +41,12 @@ from ._halfcar import (
     road_driven_rhs,
     static_equilibrium,
 )
-from ._inputs import SampledSignal
-from ._montecarlo import monte_carlo
-from ._noise import white_noise
-from ._params import HalfCarParams, random_perturbed_models
-from ._road import WheelInputs, iso8608_road
-from ._solve import solve_ode
+from ..solvers._inputs import SampledSignal
+from ..ensemble._montecarlo import monte_carlo
+from ..ensemble._noise import white_noise
+from ..models._params import HalfCarParams, random_perturbed_models
+from ..models._road import WheelInputs, iso8608_road
+from ..solvers._solve import solve_ode
 
 __all__ = [
     "SolverSpec",
@@ -389,7 +389,7 @@ class _PitchPath(eqx.Module):
 
 def _batch(models: list, *extra) -> tuple:
     """Stack scalar models and per-path extras into the ``models=`` pytree of monte_carlo."""
-    from ._params import stack_models
+    from ..models._params import stack_models
 
     return (stack_models(models), *(np.asarray(e, dtype=float) for e in extra))
 

@@ -56,7 +56,7 @@ import scipy.signal
 import scipy.stats
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
-from ._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
+from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 
 __all__ = [
     "Cause",
@@ -1331,9 +1331,9 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     import jax
     import jax.numpy as jnp
 
-    from ._halfcar import static_equilibrium
-    from ._inputs import SampledSignal
-    from ._params import HalfCarParams
+    from ...models._halfcar import static_equilibrium
+    from ...solvers._inputs import SampledSignal
+    from ...models._params import HalfCarParams
 
     sub = int(math.ceil(run.dt / 1e-3 - 1e-9))
     with jax.enable_x64(True):
@@ -1354,7 +1354,7 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
 
 
 def _force_rhs(t, y, args):
-    from ._halfcar import force_driven_rhs
+    from ...models._halfcar import force_driven_rhs
 
     params, sig = args
     f = sig(t)
@@ -1364,7 +1364,7 @@ def _force_rhs(t, y, args):
 def _jit_force_solve_impl(params, sig, y0, ts, t1, dt):
     import jax
 
-    from ._solve import solve_ode
+    from ...solvers._solve import solve_ode
 
     def one(p, sg, y):
         sol = solve_ode(_force_rhs, y, 0.0, t1, saveat=ts, args=(p, sg), dt=dt)

@@ -30,7 +30,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._solve import solve_ode
+from ..solvers._solve import solve_ode
 
 __all__ = [
     "brownian_intensity",

@@ -1,6 +1,6 @@
 """Seeded generator of attitude runs in the format of docs/measured-data.md (for tests and demos).
 
-:func:`make_attitude_run` simulates a vehicle attitude history (:func:`jaxdrift._ins.vehicle_motion`),
+:func:`make_attitude_run` simulates a vehicle attitude history (:func:`jaxdrift.models._ins.vehicle_motion`),
 samples its exact body rates and attitude, applies gyro effects (noise, bias, scale, bias random
 walk), optionally an accelerometer array with gravity correction (3.3), a displaced sensor and a
 non-rigid deformation, and writes ``run.csv`` (and ``sensors.json``). It returns the truth.
@@ -17,8 +17,8 @@ import os
 
 import numpy as np
 
-from ._ins import gyro_errors, vehicle_motion
-from ._quaternion import rotation_matrix_np, skew_np
+from ..models._ins import gyro_errors, vehicle_motion
+from ..models._quaternion import rotation_matrix_np, skew_np
 
 __all__ = ["make_attitude_run", "write_attitude_csv", "DEFAULT_POSITIONS"]
 

@@ -1,7 +1,7 @@
 """Synthetic "true" vehicle runs with hidden effects (tests, the shipped example, benchmarks).
 
 A run is the seed's virtual measurement (section 4.1, step 1): the road-driven half-car (A.4) of
-the *true* vehicle on an ISO 8608 road with hills (``jaxdrift._road``), integrated by the engine
+the *true* vehicle on an ISO 8608 road with hills (``jaxdrift.models._road``), integrated by the engine
 (adaptive DOPRI5 at tight tolerances), sampled at ``fs``; the contact forces (4.3) are the true
 wheel forces. The sensors then apply the hidden effects in the measured-data contract's form
 (``docs/measured-data.md``): ``measured(t) = scale * true(t - delay) + offset + noise``; a
@@ -15,10 +15,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._csvio import DEFAULT_MODEL
+from ..io._csvio import DEFAULT_MODEL
 
 __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES",
-           "draw_sweep_case", "score_report"]
+           "draw_sweep_case"]
 
 #: (low, high) magnitude of each effect kind; the sign is drawn separately where it matters
 SIZES = {
@@ -97,8 +97,8 @@ def draw_effects(seed: int, *, n_systematic: int = 1, size: str = "realistic",
 def _solver():
     import equinox as eqx
 
-    from ._halfcar import road_driven_rhs
-    from ._solve import solve_ode
+    from ..models._halfcar import road_driven_rhs
+    from ..solvers._solve import solve_ode
 
     def rhs(t, y, args):
         params, wheels = args
@@ -128,9 +128,9 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
     import jax
     import jax.numpy as jnp
 
-    from ._halfcar import contact_forces, static_equilibrium
-    from ._params import HalfCarParams
-    from ._road import iso8608_road
+    from ..models._halfcar import contact_forces, static_equilibrium
+    from ..models._params import HalfCarParams
+    from ..models._road import iso8608_road
 
     n = int(round(duration * fs)) + 1
     t = np.arange(n) / fs
@@ -197,7 +197,7 @@ def make_run(effects=(), *, model: dict | None = None, duration: float = 20.0, f
     """A measured run with hidden ``effects`` (see :func:`draw_effects`) against ``model``.
 
     Returns ``(columns, truth)``: columns ``t, f1, f2`` plus the requested ``channels`` (true
-    motion), ready for :func:`jaxdrift._csvio.write_vehicle_run`; ``truth`` holds the true
+    motion), ready for :func:`jaxdrift.io._csvio.write_vehicle_run`; ``truth`` holds the true
     parameters and signals.
     """
     model = dict(DEFAULT_MODEL if model is None else model)
@@ -243,46 +243,3 @@ def draw_sweep_case(rng, channel_sets, *, noise: bool = True) -> dict:
     return {"effects": effects, "fs": fs, "speed": speed, "road_class": road, "seed": seed, "channels": chans}
 
 
-def _target(d: dict) -> tuple:
-    return d["cause"], d.get("channel", d.get("parameter"))
-
-
-def score_report(report: dict, effects) -> dict:
-    """How well a diagnosis report recovers the hidden ``effects`` (tests and sweeps).
-
-    ``first``: the systematic causes head the findings, or are named as indistinguishable from
-    one of the leading findings (the report may not guess where the data cannot tell). Interval
-    coverage is checked for every effect except those the report declares indistinguishable from
-    another true effect (say an offset on f2 and m3 without z3): the data fix only a combination
-    of them. An effect named only as an alternative is checked against the alternative's
-    interval. Returns ``{"first", "covered", "total", "misses"}`` (misses: readable lines).
-    """
-    findings = report["findings"]
-    got = [_target(f) for f in findings]
-    truth = {_target(e) for e in effects if e["cause"] != "force_noise"}
-    head = findings[: max(len(truth), 1) + 1]
-    alts = {_target(a) for f in head for a in f.get("indistinguishable_from", [])}
-    first = truth <= set(got[: len(truth) + 1]) | alts
-    misses = [] if first else [f"order: true {sorted(truth)}, got {got}"]
-    confounded = set()
-    for f in findings:
-        alt_t = {_target(a) for a in f.get("indistinguishable_from", [])}
-        if _target(f) in truth and alt_t & truth:
-            confounded |= {_target(f)} | (alt_t & truth)
-    # an effect named only as an alternative of a finding (m3 behind a g finding without z3) is
-    # checked against the interval the report gives that alternative
-    alt_entries = [a for f in findings for a in f.get("indistinguishable_from", []) if "interval" in a]
-    covered = total = 0
-    for e in effects:
-        if _target(e) in confounded:
-            continue
-        match = [f for f in findings if _target(f) == _target(e)] or \
-            [a for a in alt_entries if _target(a) == _target(e)]
-        total += 1
-        inside = bool(match) and match[0]["interval"][0] <= e["value"] <= match[0]["interval"][1]
-        covered += inside
-        if not inside:
-            where = (f"estimate {match[0]['estimate']:.5g} interval [{match[0]['interval'][0]:.5g}, "
-                     f"{match[0]['interval'][1]:.5g}]") if match else "not reported"
-            misses.append(f"{_target(e)} true {e['value']:.5g}: {where}")
-    return {"first": bool(first), "covered": covered, "total": total, "misses": misses}

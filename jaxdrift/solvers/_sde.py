@@ -15,7 +15,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._solve import Solution, _check_args, _concrete, _max_saves_per_step, _save_pending
+from ._solution import Solution
+from ._solve import _check_args, _concrete, _max_saves_per_step, _save_pending
 
 __all__ = ["solve_sde"]
 

@@ -11,16 +11,16 @@ import argparse
 import importlib
 import sys
 
+from ..errors import UsageError
+
+__all__ = ["UsageError", "build_parser", "main"]
+
 # (module, help) for each subcommand; a module provides add_parser(subparsers).
 _SUBCOMMANDS = [
-    "jaxdrift._cli_paper",
-    "jaxdrift._cli_diagnose",
-    "jaxdrift._cli_attitude",
+    "jaxdrift.cli._paper",
+    "jaxdrift.cli._diagnose",
+    "jaxdrift.cli._attitude",
 ]
-
-
-class UsageError(Exception):
-    """Bad input from the user: printed without a traceback, exit code 2."""
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -52,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.version:
-        from . import __version__
+        from .. import __version__
 
         print(__version__)
         return 0

@@ -96,7 +96,7 @@ def _prepare(out, usage):
 
 def _run_into(out, study):
     """Run ``study(tmp_dir)`` and move its files into ``out`` only if it succeeds (nothing half-written)."""
-    from .cli import UsageError
+    from ..errors import UsageError
 
     tmp = _prepare(out, UsageError)
     try:
@@ -128,7 +128,7 @@ def _plt():
 
 
 def run_ins(args) -> int:
-    from .cli import UsageError
+    from ..errors import UsageError
 
     for k in ("duration", "rate", "sigma"):
         _positive(k, getattr(args, k), UsageError)
@@ -145,8 +145,8 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
     import numpy as np
     from scipy import stats
 
-    from ._ins import gyro_errors, vehicle_motion
-    from ._quaternion import integrate_rates_np, quat_conjugate_np, quat_log_np, quat_multiply_np, quat_to_euler_np
+    from ..models._ins import gyro_errors, vehicle_motion
+    from ..models._quaternion import integrate_rates_np, quat_conjugate_np, quat_log_np, quat_multiply_np, quat_to_euler_np
 
     plt = _plt()
     motion = vehicle_motion(seed, duration + 1.0)
@@ -163,7 +163,7 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
         import jax
         import jax.numpy as jnp
 
-        from ._quaternion import integrate_rates
+        from ..analysis._attitude_paths import integrate_rates
 
         with jax.enable_x64(True):
             qs = integrate_rates(jnp.asarray(q_true[0]), jnp.asarray(w_meas), dt, method=meth, rtol=1e-6, atol=1e-8)
@@ -276,7 +276,7 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
 
 
 def run_quaternion_drift(args) -> int:
-    from .cli import UsageError
+    from ..errors import UsageError
 
     for k in ("sigma", "t1", "dt"):
         _positive(k, getattr(args, k), UsageError)
@@ -296,7 +296,8 @@ def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, see
     import numpy as np
     from scipy import stats
 
-    from ._quaternion import ito_norm_growth, quat_log_np, quaternion_sde_paths
+    from ..analysis._attitude_paths import quaternion_sde_paths
+    from ..models._quaternion import ito_norm_growth, quat_log_np
 
     plt = _plt()
     res = {}
@@ -355,7 +356,7 @@ def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, see
 
 
 def run_accel_array(args) -> int:
-    from .cli import UsageError
+    from ..errors import UsageError
 
     for k in ("duration", "rate", "noise"):
         _positive(k, getattr(args, k), UsageError)
@@ -372,10 +373,10 @@ def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_pat
     import numpy as np
     from scipy import stats
 
-    from ._accel_array import angle_error_std_closed_form, reconstruct, simulate_array
-    from ._attgen import DEFAULT_POSITIONS
-    from ._ins import vehicle_motion
-    from ._quaternion import quat_log_np, rotation_angle_between_np
+    from ..models._accel_array import angle_error_std_closed_form, reconstruct, simulate_array
+    from ..studies._attgen import DEFAULT_POSITIONS
+    from ..models._ins import vehicle_motion
+    from ..models._quaternion import quat_log_np, rotation_angle_between_np
 
     plt = _plt()
     r = DEFAULT_POSITIONS

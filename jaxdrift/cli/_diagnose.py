@@ -91,8 +91,8 @@ def _check_output(path: str, UsageError) -> None:
 
 
 def run_diagnose(args) -> int:
-    from .cli import UsageError
-    from ._csvio import InputError, read_header
+    from ..errors import UsageError
+    from ..io._csvio import InputError, read_header
 
     _check_output(args.json, UsageError)
     try:
@@ -103,7 +103,7 @@ def run_diagnose(args) -> int:
         if args.model:
             raise UsageError(f"{args.run}: an attitude run (column wx) takes --sensors, not --model")
         try:
-            from ._diagnose_attitude import run_attitude_diagnosis
+            from ..diagnosis.attitude._diagnose import run_attitude_diagnosis
         except ImportError as e:
             print(f"jaxdrift diagnose: internal error: the attitude diagnosis is not available ({e})",
                   file=sys.stderr)
@@ -120,7 +120,7 @@ def run_diagnose(args) -> int:
     else:
         if args.sensors:
             raise UsageError(f"{args.run}: a vehicle run (no column wx) takes --model, not --sensors")
-        from ._csvio import DEFAULT_MODEL, read_model, read_vehicle_run
+        from ..io._csvio import DEFAULT_MODEL, read_model, read_vehicle_run
 
         try:
             run = read_vehicle_run(args.run)
@@ -130,7 +130,7 @@ def run_diagnose(args) -> int:
         for w in run.warnings:
             print(f"jaxdrift diagnose: warning: {w}", file=sys.stderr)
         try:
-            from ._diagnose_vehicle import diagnose_vehicle_run
+            from ..diagnosis.vehicle._diagnose import diagnose_vehicle_run
 
             report = diagnose_vehicle_run(run, model, args.plots)
         except UsageError:

@@ -19,6 +19,8 @@ from typing import Mapping
 
 import numpy as np
 
+from ..errors import InputError
+
 __all__ = [
     "InputError",
     "VehicleRun",
@@ -54,10 +56,6 @@ MIN_SAMPLES = 100
 MIN_DURATION_S = 1.0
 #: Relative jitter allowed on the sample spacing (the spec: below 1e-6).
 JITTER_TOL = 1e-6
-
-
-class InputError(ValueError):
-    """Bad user input; the message names file, line or column and the problem."""
 
 
 @dataclasses.dataclass(frozen=True)

@@ -32,7 +32,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._inputs import local_to_step
-from ._solve import Solution
+from ._solution import Solution
 from ._tableau import DOPRI5
 
 __all__ = ["solve_fixed_fast", "save_grid"]

@@ -8,7 +8,6 @@ an exception.
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Callable
 from typing import Any
 
@@ -18,26 +17,12 @@ from jax.custom_batching import custom_vmap
 import jax.numpy as jnp
 import numpy as np
 
+from ._fast import save_grid, solve_fixed_fast
 from ._inputs import local_to_step
+from ._solution import RESULTS, Result, Solution
 from ._tableau import DOPRI5, ButcherTableau
 
 __all__ = ["RESULTS", "Result", "Solution", "StepController", "solve_ode"]
-
-
-class Result(enum.IntEnum):
-    """Per-path result codes of :func:`solve_ode` (``RESULTS[code]`` is the message)."""
-
-    SUCCESS = 0
-    MAX_STEPS = 1
-    STEP_UNDERFLOW = 2
-
-
-RESULTS = {
-    Result.SUCCESS: "successful",
-    Result.MAX_STEPS: "the maximum number of solver steps was reached",
-    Result.STEP_UNDERFLOW: "the step size fell below the spacing of floating-point numbers "
-    "(stiff or non-finite right-hand side)",
-}
 
 
 class StepController(eqx.Module):
@@ -57,29 +42,6 @@ class StepController(eqx.Module):
     @classmethod
     def pi(cls) -> StepController:
         return cls(beta1=0.17, beta2=0.04)
-
-
-class Solution(eqx.Module):
-    """The values at the requested save times and the solver statistics.
-
-    ``num_accepted``/``num_rejected`` count the steps taken. The fixed-step mode with save times on
-    the step grid stops at the last save time (nothing after it is returned), so there it counts
-    the steps up to that time, not to ``t1``.
-    """
-
-    ts: jax.Array
-    ys: jax.Array
-    result: jax.Array
-    num_accepted: jax.Array
-    num_rejected: jax.Array
-
-    @property
-    def stats(self) -> dict[str, jax.Array]:
-        return {
-            "num_accepted": self.num_accepted,
-            "num_rejected": self.num_rejected,
-            "num_steps": self.num_accepted + self.num_rejected,
-        }
 
 
 def _rms(x):
@@ -289,8 +251,6 @@ def _solve_fixed(f, y0, f0, t0, t1, t0c, t1c, ts, ts_concrete, out0, args, metho
         # The usual Monte-Carlo case: saves on the step grid at a constant stride (statistics
         # every 0.1 s with 1 ms steps). A scan over save intervals around a scan over steps needs
         # no save bookkeeping inside the step and no dense output (measured: docs/performance.md).
-        from ._fast import save_grid, solve_fixed_fast
-
         try:
             save_grid(t0c, t1c, dtc, ts_concrete)
         except ValueError:

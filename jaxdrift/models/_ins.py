@@ -23,7 +23,7 @@ import numpy as np
 
 from ._quaternion import euler_to_quat_np, rotation_matrix_np
 
-__all__ = ["SmoothMotion", "vehicle_motion", "gyro_errors", "ins_demo"]
+__all__ = ["SmoothMotion", "vehicle_motion", "gyro_errors"]
 
 
 def _bump(t, t_c, w):
@@ -216,32 +216,3 @@ def gyro_errors(rng, n, dt, *, arw=0.0, bias=(0.0, 0.0, 0.0), rrw=(0.0, 0.0, 0.0
     return e
 
 
-def ins_demo(seed: int = 0, duration: float = 600.0, dt: float = 1e-3, sigma_m: float = 0.1, method: str = "expmap"):
-    """The Figs. 1-2 demonstration: true angles, angles reconstructed from noisy rates, their error.
-
-    Rates get white noise of standard deviation ``sigma_m`` [rad/s] per sample (the seed's 0.1 rad/s);
-    the expected envelope of the angle errors is ``sigma_m sqrt(dt) sqrt(t)`` (0.18 deg/sqrt(s)).
-    Returns a dict of numpy arrays (``t``, ``true``, ``reconstructed``, ``error`` as Cardan angles in
-    rad, ``sigma`` [rad/sqrt(s)]).
-    """
-    from ._quaternion import integrate_rates_np, quat_to_euler_np
-
-    motion = vehicle_motion(seed, duration)
-    t = np.arange(int(round(duration / dt)) + 1) * dt
-    q_true = motion.quaternion(t)
-    # sample rates so that the hold-over-step integration reproduces q_true: rate at the midpoint
-    w_true = motion.body_rates(t + 0.5 * dt)
-    rng = np.random.default_rng(seed + 1)
-    w_meas = w_true + rng.normal(size=w_true.shape) * sigma_m
-    if method == "expmap":
-        q_rec = integrate_rates_np(q_true[0], w_meas, dt)
-    else:
-        import jax.numpy as jnp
-
-        from ._quaternion import integrate_rates
-
-        q_rec = np.asarray(integrate_rates(jnp.asarray(q_true[0]), jnp.asarray(w_meas), dt, method=method))
-    true_ang = quat_to_euler_np(q_true)
-    rec_ang = quat_to_euler_np(q_rec)
-    err = np.angle(np.exp(1j * (rec_ang - true_ang)))
-    return {"t": t, "true": true_ang, "reconstructed": rec_ang, "error": err, "sigma": sigma_m * np.sqrt(dt)}

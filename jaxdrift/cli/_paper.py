@@ -1,6 +1,6 @@
 """``jaxdrift paper`` and ``jaxdrift pointmass``: the seed paper's studies in one command each.
 
-Thin: parses and checks the arguments, calls :mod:`jaxdrift._study` / :mod:`jaxdrift._pointmass`,
+Thin: parses and checks the arguments, calls :mod:`jaxdrift.studies._study` / :mod:`jaxdrift.studies._pointmass`,
 writes figures and JSON (into a temporary folder first, moved into place at the end). See
 ``docs/paper-study.md``.
 """
@@ -92,13 +92,13 @@ def add_parser(subparsers) -> None:
 
 
 def _usage(msg):
-    from .cli import UsageError
+    from ..errors import UsageError
 
     return UsageError(msg)
 
 
 def _load_params(path):
-    from ._params import HalfCarParams
+    from ..models._params import HalfCarParams
 
     if path is None:
         return HalfCarParams()
@@ -153,7 +153,7 @@ def run_paper(args) -> int:
         raise _usage(f"--duration must be at least 1 s, got {args.duration}")
 
     _enable_x64()
-    from ._study import SOLVER_FIXED, SOLVER_LOOSE, SOLVER_TIGHT, StudyConfig, run_paper_study, write_paper_outputs
+    from ..studies._study import SOLVER_FIXED, SOLVER_LOOSE, SOLVER_TIGHT, StudyConfig, run_paper_study, write_paper_outputs
 
     cfg = StudyConfig(
         params=params, duration=args.duration, speed=args.speed, road_class=str(args.road_class).upper(),
@@ -220,7 +220,7 @@ def run_pointmass(args) -> int:
     import shutil
     import tempfile
 
-    from ._pointmass import plot_pointmass, run_pointmass_study
+    from ..studies._pointmass import plot_pointmass, run_pointmass_study
 
     study = run_pointmass_study(sigma_m=args.sigma_m, dt=args.dt, duration=args.duration, n_paths=args.paths,
                                 etas=tuple(args.eta), mass=args.mass, seed=args.seed, progress=not args.no_progress)

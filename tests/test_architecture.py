@@ -1,0 +1,203 @@
+"""The layering of jaxdrift, checked on the source with ``ast`` (no import of jaxdrift needed).
+
+Layers (a module may import only the layers listed for its own; ``errors`` is open to all):
+
+    solvers   <- ensemble <- analysis <- diagnosis <- studies <- cli
+    models    <-------------'            io ---'
+    io (numpy only)
+
+Rules: no import cycle between modules; no module over 650 lines; no function over 150 lines;
+models import no engine (solvers, ensemble) and no matplotlib; nothing but ``cli`` imports ``cli``;
+the report scorer used by the sweeps is not shipped in the library.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1] / "jaxdrift"
+
+MAX_MODULE_LINES = 650
+MAX_FUNCTION_LINES = 150
+
+# layer -> layers it may import (besides itself and ``errors``)
+ALLOWED = {
+    "errors": set(),
+    "solvers": set(),
+    "ensemble": {"solvers"},
+    "models": set(),
+    "io": set(),
+    "analysis": {"models", "solvers", "ensemble"},
+    "diagnosis": {"models", "analysis", "solvers", "ensemble", "io"},
+    "studies": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis"},
+    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies"},
+}
+# third-party packages a layer must not import
+FORBIDDEN_THIRD_PARTY = {
+    "solvers": {"matplotlib", "scipy", "tqdm"},
+    "models": {"matplotlib", "tqdm"},
+    "io": {"jax", "equinox", "matplotlib"},
+    "errors": {"jax", "numpy", "matplotlib"},
+    "analysis": {"matplotlib"},
+    "ensemble": {"matplotlib"},
+}
+
+
+def module_name(path: Path, root: Path = ROOT) -> str:
+    rel = path.relative_to(root.parent).with_suffix("")
+    parts = list(rel.parts)
+    if parts[-1] == "__init__":
+        parts = parts[:-1]
+    return ".".join(parts)
+
+
+def layer_of(mod: str) -> str:
+    parts = mod.split(".")
+    if len(parts) == 1:
+        return "top"  # jaxdrift/__init__.py: the lazy public surface
+    name = parts[1]
+    if name == "__main__":
+        return "top"
+    return name.lstrip("_") if name.lstrip("_") in ALLOWED else name
+
+
+def _resolve(mod: str, is_pkg: bool, node: ast.ImportFrom) -> list[str]:
+    if node.level == 0:
+        base = node.module or ""
+    else:
+        pkg = mod.split(".") if is_pkg else mod.split(".")[:-1]
+        pkg = pkg[: len(pkg) - (node.level - 1)]
+        base = ".".join(pkg + ([node.module] if node.module else []))
+    # ``from .pkg import name`` may import a submodule: keep both candidates
+    return [base] + [f"{base}.{a.name}" for a in node.names]
+
+
+def scan(root: Path = ROOT):
+    """Return {module: (path, imports: set of dotted names, third-party top names)}."""
+    out = {}
+    for path in sorted(root.rglob("*.py")):
+        mod = module_name(path, root)
+        tree = ast.parse(path.read_text(), filename=str(path))
+        internal, external = set(), set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                for a in node.names:
+                    (internal if a.name.split(".")[0] == "jaxdrift" else external).add(
+                        a.name if a.name.startswith("jaxdrift") else a.name.split(".")[0])
+            elif isinstance(node, ast.ImportFrom):
+                names = _resolve(mod, path.name == "__init__.py", node)
+                if names[0].split(".")[0] == "jaxdrift":
+                    internal.update(names)
+                else:
+                    external.add(names[0].split(".")[0])
+        out[mod] = (path, tree, internal, external)
+    return out
+
+
+def module_graph(mods) -> dict[str, set[str]]:
+    known = set(mods)
+    graph = {}
+    for mod, (_, _, internal, _) in mods.items():
+        graph[mod] = {m for m in internal if m in known and m != mod}
+    return graph
+
+
+def find_cycle(graph) -> list[str] | None:
+    color, stack = {}, []
+
+    def visit(u):
+        color[u] = 1
+        stack.append(u)
+        for v in sorted(graph[u]):
+            # a package __init__ re-exporting its own private modules is not a cycle with them
+            if color.get(v) == 1:
+                return stack[stack.index(v):] + [v]
+            if v not in color:
+                c = visit(v)
+                if c:
+                    return c
+        stack.pop()
+        color[u] = 2
+        return None
+
+    for u in sorted(graph):
+        if u not in color:
+            c = visit(u)
+            if c:
+                return c
+    return None
+
+
+def violations(root: Path = ROOT) -> list[str]:
+    mods = scan(root)
+    problems = []
+    graph = module_graph(mods)
+    cycle = find_cycle(graph)
+    if cycle:
+        problems.append("import cycle: " + " -> ".join(cycle))
+    for mod, (path, tree, internal, external) in mods.items():
+        n_lines = len(path.read_text().splitlines())
+        if n_lines > MAX_MODULE_LINES:
+            problems.append(f"{mod}: {n_lines} lines (max {MAX_MODULE_LINES})")
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = node.end_lineno - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    problems.append(f"{mod}:{node.name}: {n} lines (max {MAX_FUNCTION_LINES})")
+        layer = layer_of(mod)
+        if layer == "top":
+            continue
+        if layer not in ALLOWED:
+            problems.append(f"{mod}: in no layer (a flat private module outside the subpackages)")
+            continue
+        for dep in sorted(graph[mod]):
+            dl = layer_of(dep)
+            if dl in (layer, "errors", "top") and dl != "top":
+                continue
+            if dl == "top" and layer == "cli" and dep == "jaxdrift":
+                continue  # the CLI reads jaxdrift.__version__
+            if dl == "top":
+                problems.append(f"{mod} imports the top-level package {dep} (import the layer itself)")
+            elif dl not in ALLOWED.get(layer, set()):
+                problems.append(f"{mod} ({layer}) imports {dep} ({dl})")
+        for ext in sorted(external & FORBIDDEN_THIRD_PARTY.get(layer, set())):
+            problems.append(f"{mod} ({layer}) imports {ext}")
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and node.name == "score_report":
+                problems.append(f"{mod}: the test-only report scorer ships in the library")
+    return problems
+
+
+def test_layers_and_sizes():
+    problems = violations()
+    assert not problems, "architecture rules broken:\n" + "\n".join(problems)
+
+
+def test_checker_catches_a_broken_tree(tmp_path):
+    """The checker must be able to fail: a model importing the engine and a cycle are caught."""
+    pkg = tmp_path / "jaxdrift"
+    for sub in ("models", "solvers", "cli"):
+        (pkg / sub).mkdir(parents=True)
+        (pkg / sub / "__init__.py").write_text("")
+    (pkg / "__init__.py").write_text("")
+    (pkg / "models" / "_m.py").write_text("from ..solvers._s import f\nimport matplotlib\n")
+    (pkg / "solvers" / "_s.py").write_text("from ._t import g\ndef f():\n    pass\n")
+    (pkg / "solvers" / "_t.py").write_text("from ._s import f\nfrom ..cli import main\n"
+                                           "def g():\n" + "    x = 1\n" * 160)
+    found = "\n".join(violations(pkg))
+    assert "models._m (models) imports jaxdrift.solvers._s (solvers)" in found
+    assert "models._m (models) imports matplotlib" in found
+    assert "import cycle" in found
+    assert "solvers._t (solvers) imports jaxdrift.cli (cli)" in found
+    assert "solvers._t:g: 161 lines" in found
+
+
+@pytest.mark.parametrize("name", ["solve_ode", "monte_carlo", "HalfCarParams", "diagnose_vehicle_run",
+                                  "run_attitude_diagnosis", "read_vehicle_run", "run_paper_study"])
+def test_public_names_resolve(name):
+    import jaxdrift
+
+    assert getattr(jaxdrift, name) is not None
