@@ -68,12 +68,14 @@ def _derivative_of_measured(x, dt):
 
 
 def section_forces(t, f1, f2, model=None, *, beta=None, beta_rate=None, s1=None, s2=None,
-                   extended: dict | None = None, spring: dict | None = None) -> dict:
+                   extended: dict | None = None, spring: dict | None = None,
+                   filter_pitch: bool = True) -> dict:
     """Nominal section forces ``f3, f4`` of every variant the run allows (no added noise).
 
     ``extended``: the diagnosis's ``extended_model`` (``parameters``, ``corrections``); None uses
     the model itself. ``spring``: :func:`~jaxdrift.durability.pitch_spring_rule`'s dict (default:
-    the rule). Returns ``{"forces": {variant: (n, 2)}, "pitch_spring_torque", "enforced_moment",
+    the rule). ``filter_pitch=False``: plain central differences of the measured pitch (for
+    comparison only). Returns ``{"forces": {variant: (n, 2)}, "pitch_spring_torque", "enforced_moment",
     "derivative_filter", "pitch_spring", "integration", "section_forces_fn"}``.
     """
     p = _params_dict(model)
@@ -88,7 +90,13 @@ def section_forces(t, f1, f2, model=None, *, beta=None, beta_rate=None, s1=None,
         h, m = h_ext, m_ext
     pitch, dfilter = None, None
     if beta is not None:
-        b, db, ddb, dfilter = filtered_derivatives(beta, dt, beta_rate)
+        if filter_pitch:
+            b, db, ddb, dfilter = filtered_derivatives(beta, dt, beta_rate)
+        else:
+            b = np.asarray(beta, float)
+            db = np.gradient(b, dt) if beta_rate is None else np.asarray(beta_rate, float)
+            ddb = np.gradient(db, dt)
+            dfilter = {"kind": "none: plain central differences (filter_pitch=False)", "cutoff_hz": None}
         pitch = np.stack([b, db, ddb], axis=1)
     sf = build_section_forces(t, np.stack([f1, f2], axis=1), pitch, p, p_ext, ext["corrections"], spring, h)
     out, code = _nominal(sf)
