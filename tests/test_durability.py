@@ -154,3 +154,100 @@ def test_stabilised_damage_within_5_percent_of_the_truth(road, fs, pitch_noise_d
         plain = section_forces(cols["t"], cols["f1"], cols["f2"], truth["params"], beta=beta, filter_pitch=False)
         d_plain = np.array([load_statistics(plain["forces"]["stabilised"][:, j])["damage"] for j in range(2)])
         assert np.all(d_plain / true > 1.3), d_plain / true
+
+
+@pytest.fixture(scope="module")
+def short_run(tmp_path_factory):
+    """A 4 s, 200 Hz run with force noise, an offset on f2 and measured pitch (CSV on disk)."""
+    from jaxdrift.io._csvio import write_vehicle_run
+    from jaxdrift.studies import make_run
+
+    cols, truth = make_run([{"cause": "force_offset", "channel": "f2", "value": 80.0},
+                            {"cause": "force_noise", "value": 15.0}],
+                           fs=200.0, road_class="C", duration=4.0, seed=21, speed=15.0, channels=("beta",))
+    path = tmp_path_factory.mktemp("run") / "run.csv"
+    write_vehicle_run(path, cols["t"], {k: v for k, v in cols.items() if k != "t"})
+    return path, cols, truth
+
+
+def test_monte_carlo_band_does_not_depend_on_chunking_and_zero_noise_is_nominal(short_run):
+    from jaxdrift.durability import monte_carlo_damage
+
+    _, cols, truth = short_run
+    res = section_forces(cols["t"], cols["f1"], cols["f2"], DEFAULT_MODEL, beta=cols["beta"])
+    sf = res["section_forces_fn"]
+    variants = ["force_driven", "pitch_spring", "stabilised", "extended"]
+    # one chunk size throughout (each size is a compilation): paths 0-1 of a 4-path study in two
+    # chunks equal a 2-path study's, because a path's noise comes from its global index
+    a = monte_carlo_damage(sf, 15.0, 4, variants=variants, chunk=2, progress=False)
+    b = monte_carlo_damage(sf, 15.0, 2, variants=variants, chunk=2, progress=False)
+    np.testing.assert_array_equal(a[:2], b)
+    assert len({float(x) for x in a[:, 2, 0]}) == 4  # every path its own noise draw
+    z = monte_carlo_damage(sf, 0.0, 2, variants=variants, chunk=2, progress=False)
+    nominal = [[load_statistics(res["forces"][v][:, j])["damage"] for j in range(2)] for v in variants]
+    np.testing.assert_allclose(z[0], nominal, rtol=1e-12)
+    np.testing.assert_array_equal(z[0], z[1])
+
+
+def _cli(*args):
+    from jaxdrift.cli import main
+
+    return main(["durability", *map(str, args)])
+
+
+def test_cli_writes_the_outputs(short_run, tmp_path, capsys):
+    path, _, _ = short_run
+    out = tmp_path / "out"
+    assert _cli(path, "--out", out, "--paths", 2, "--quiet", "--seed", 5) == 0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(["durability.json", "section_forces.csv", "section_forces.png",
+                            "rainflow_histogram.png", "damage_ratio.png"])
+    rep = json.loads((out / "durability.json").read_text())
+    assert rep["schema"] == "jaxdrift.durability/1" and rep["basquin_k"] == 5.0
+    assert set(rep["runs"]) == {"force_driven", "pitch_spring", "stabilised", "extended"}
+    assert rep["variants_skipped"] == {"measured": "the run has no s1, s2"}
+    for v in ("force_driven", "pitch_spring", "extended"):
+        assert rep["damage_ratio_to_stabilised"][v] > 0
+        q = rep["monte_carlo"]["damage_ratio_quantiles"][v]
+        assert q[0] <= q[1] <= q[2]
+    mc = rep["monte_carlo"]
+    assert mc["paths"] == 2 and mc["noise_source"] == "diagnosis force_noise finding" and mc["noise_N"] > 0
+    # the diagnosis found the f2 offset, so the extended variant's forces were corrected
+    assert rep["provenance"]["extended_model"]["corrections"]["f2"]["offset"] == pytest.approx(80.0, abs=15.0)
+    assert rep["provenance"]["input_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
+    assert rep["derivative_filter"]["kind"] and "cutoff_hz" in rep["derivative_filter"]
+    assert rep["pitch_spring"]["torque_max_abs"] > 0
+    header = (out / "section_forces.csv").read_text().splitlines()[0].split(",")
+    assert header[:3] == ["t", "force_driven_f3", "force_driven_f4"] and "stabilised_enforced_moment" in header
+    data = np.loadtxt(out / "section_forces.csv", delimiter=",", skiprows=1)
+    assert data.shape == (801, len(header))
+    assert load_statistics(data[:, header.index("stabilised_f3")])["damage"] == pytest.approx(
+        rep["runs"]["stabilised"]["f3"]["damage"], rel=1e-6)  # the CSV's 10 digits
+
+
+def test_cli_bad_input_exits_2_and_writes_nothing(short_run, tmp_path, capsys):
+    path, _, _ = short_run
+    out = tmp_path / "out"
+    bad_run = tmp_path / "bad.csv"
+    bad_run.write_text("t,f1\n0,1\n0.01,2\n")
+    bad_model = tmp_path / "model.json"
+    bad_model.write_text(json.dumps({**DEFAULT_MODEL, "k3": -1.0}))
+    bad_report = tmp_path / "report.json"
+    bad_report.write_text(json.dumps({"schema": "something else"}))
+    a_file = tmp_path / "file"
+    a_file.write_text("x")
+    cases = [
+        (bad_run, "--out", out),
+        (path, "--out", out, "--model", bad_model),
+        (path, "--out", out, "--report", bad_report),
+        (path, "--out", out, "--paths", -1),
+        (path, "--out", out, "--basquin-k", 0),
+        (path, "--out", a_file),
+        (tmp_path / "missing.csv", "--out", out),
+    ]
+    for args in cases:
+        assert _cli(*args) == 2, args
+        err = capsys.readouterr().err
+        assert "error" in err and "Traceback" not in err
+        assert not out.exists()
+    assert a_file.read_text() == "x"
