@@ -169,7 +169,7 @@ def monte_carlo_damage(sf, sigma: float, paths: int, *, variants, basquin_k=5.0,
 
     fn = _MCPath(sf)
     key = jax.random.key(seed)
-    n = sf.forces.shape[0]
+    n = sf.ts.shape[0]
     out = np.full((paths, len(variants), 2), np.nan)
     bar = tqdm(total=paths, unit="path", desc="durability noise paths", disable=not progress)
     try:

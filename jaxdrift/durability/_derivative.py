@@ -7,9 +7,10 @@ A plain finite difference of an angle with white noise of standard deviation ``s
 ``d3 b`` is 870 N of white noise on ``f3``. So the signal is low-pass filtered first, with a
 cutoff read from the data:
 
-1. **noise level** ``sigma``: from the 4th differences of the signal, which remove a smooth signal
-   and leave ``70 sigma^2`` of white noise variance; robust scale (1.4826 x median absolute
-   deviation) so that a few steps in the signal do not count as noise;
+1. **noise level** ``sigma``: the smaller of two estimates (:func:`noise_level`): the 4th
+   differences of the signal, which remove a smooth signal and leave ``70 sigma^2`` of white noise
+   variance (robust scale, 1.4826 x median absolute deviation, so that a few steps in the signal do
+   not count as noise), and the mean Welch PSD above ``SPECTRUM_BAND x fs`` (``sigma^2 = PSD fs / 2``);
 2. **cutoff**: the Welch PSD ``P`` of the signal (segments of ``WELCH_SEGMENT_S``) and the white
    noise floor ``N0 = 2 sigma^2 dt`` (one-sided) give the frequency ``f*`` that minimises the
    mean-square error of the derivative behind an ideal low-pass: the signal power of ``x'`` lost
@@ -39,10 +40,12 @@ The rule and its numbers are returned (``derivative_filter`` of the durability r
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy import signal
 
-__all__ = ["derivative", "noise_from_differences", "choose_cutoff", "lowpass", "filtered_derivatives",
+__all__ = ["derivative", "noise_from_differences", "noise_from_spectrum", "noise_level", "choose_cutoff", "lowpass", "filtered_derivatives",
            "CUTOFF_FACTOR", "ORDER", "NOISE_FLOOR_RAD"]
 
 ORDER = 4
@@ -50,6 +53,7 @@ CUTOFF_FACTOR = 1.5
 MIN_CUTOFF_HZ = 0.5
 MAX_CUTOFF_FRACTION = 0.4
 WELCH_SEGMENT_S = 4.0
+SPECTRUM_BAND = 0.3
 #: below this 4th-difference noise level (rad) a signal counts as clean
 NOISE_FLOOR_RAD = 1e-7
 
@@ -62,6 +66,23 @@ def noise_from_differences(x) -> float:
     d4 = np.diff(x, 4)
     mad = np.median(np.abs(d4 - np.median(d4)))
     return float(1.4826 * mad / np.sqrt(70.0))
+
+
+def noise_from_spectrum(x, fs: float) -> float:
+    """White-noise standard deviation of ``x`` from the mean Welch PSD above ``SPECTRUM_BAND x fs``
+    (``sigma^2 = mean PSD x fs / 2``): the band where a vehicle signal has sunk into the noise."""
+    x = np.asarray(x, dtype=float)
+    nper = int(min(x.size, max(64, round(WELCH_SEGMENT_S * fs))))
+    f, p = signal.welch(x - np.mean(x), fs=fs, nperseg=nper, detrend="linear")
+    band = (f >= SPECTRUM_BAND * fs) & (f < 0.5 * fs)  # the Nyquist bin has half the weight
+    return float(np.sqrt(np.mean(p[band]) * fs / 2.0)) if band.any() else math.inf
+
+
+def noise_level(x, fs: float) -> float:
+    """The smaller of :func:`noise_from_differences` and :func:`noise_from_spectrum`: either one
+    overestimates when the signal itself reaches into what it measures (the 4th differences of a
+    200 Hz spring travel with the 22 Hz wheel hop in it), neither underestimates white noise."""
+    return min(noise_from_differences(x), noise_from_spectrum(x, fs))
 
 
 def choose_cutoff(x, fs: float, sigma: float, *, factor: float = CUTOFF_FACTOR) -> tuple[float, float]:
@@ -102,7 +123,7 @@ def derivative(x, dt: float) -> np.ndarray:
 
 
 def _smooth(x, fs, name):
-    sigma = noise_from_differences(x)
+    sigma = noise_level(x, fs)
     if sigma < NOISE_FLOOR_RAD:
         return np.asarray(x, float), {"signal": name, "kind": "none", "noise_estimate": sigma,
                                       "cutoff_hz": None, "mse_optimal_hz": None}
@@ -134,7 +155,8 @@ def filtered_derivatives(beta, dt: float, beta_rate=None) -> tuple[np.ndarray, n
         "cutoff_hz": main["cutoff_hz"],
         "rate_source": rate_source,
         "signals": [info_b] + ([info_r] if beta_rate is not None else []),
-        "rule": (f"noise sigma from 4th differences (robust); f* minimises the derivative's mean-square "
+        "rule": (f"noise sigma: the smaller of the 4th-difference estimate (robust) and the mean PSD above "
+                 f"{SPECTRUM_BAND:g} fs; f* minimises the derivative's mean-square "
                  f"error (signal power lost above f* + noise power below f*, from the Welch PSD and the "
                  f"floor 2 sigma^2 dt); cutoff = {CUTOFF_FACTOR:g} f*, clamped to [{MIN_CUTOFF_HZ:g} Hz, "
                  f"{MAX_CUTOFF_FRACTION:g} fs]; Butterworth order {ORDER}, zero phase; no filter below "
