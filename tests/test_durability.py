@@ -251,3 +251,19 @@ def test_cli_bad_input_exits_2_and_writes_nothing(short_run, tmp_path, capsys):
         assert "error" in err and "Traceback" not in err
         assert not out.exists()
     assert a_file.read_text() == "x"
+
+
+def test_run_without_pitch_gives_the_unstabilised_variants_only(short_run):
+    from jaxdrift import VehicleRun, durability_analysis
+
+    _, cols, _ = short_run
+    run = VehicleRun(path="<memory>", t=cols["t"], channels={"f1": cols["f1"], "f2": cols["f2"]})
+    report = {"findings": [], "extended_model": None}
+    res = durability_analysis(run, DEFAULT_MODEL, paths=0, report=report, progress=False)
+    s = res.summary
+    assert set(res.forces) == {"force_driven", "pitch_spring"}
+    assert s["variants_skipped"] == {"stabilised": "the run has no beta", "extended": "the run has no beta",
+                                     "measured": "the run has no s1, s2"}
+    assert s["reference"] is None and s["damage_ratio_to_stabilised"] == {}
+    assert s["monte_carlo"]["paths"] == 0 and s["monte_carlo"]["noise_N"] > 0  # from the forces themselves
+    assert s["runs"]["force_driven"]["f3"]["damage"] > 0

@@ -18,7 +18,7 @@ from ..ensemble._montecarlo import monte_carlo
 from ..errors import InputError
 from ..io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ._damage import load_statistics, rainflow_cycles, pseudo_damage, range_histogram
-from ._derivative import filtered_derivatives, noise_from_differences
+from ._derivative import filtered_derivatives, noise_level
 from ._variants import (OUTPUT_COLUMNS, SIMULATED, build_section_forces, integration_step,
                         pitch_spring_rule)
 
@@ -192,8 +192,10 @@ def _noise_level(report, run) -> tuple[float, str]:
     for f in (report or {}).get("findings", []):
         if f.get("cause") == "force_noise" and f.get("estimate") is not None:
             return float(f["estimate"]), "diagnosis force_noise finding"
-    s = 0.5 * (noise_from_differences(run["f1"]) + noise_from_differences(run["f2"]))
-    return s, "4th differences of the measured forces (the diagnosis reported no force noise)"
+    fs = 1.0 / run.dt
+    s = 0.5 * (noise_level(run["f1"], fs) + noise_level(run["f2"], fs))
+    return s, ("the measured forces' own noise level (4th differences / high-band PSD; the diagnosis "
+               "reported no force noise)")
 
 
 def _quantiles(x):
