@@ -162,27 +162,41 @@ def monte_carlo_damage(sf, sigma: float, paths: int, *, variants, basquin_k=5.0,
                        progress=True) -> np.ndarray:
     """``(paths, len(variants), 2)`` pseudo-damage of ``f3, f4`` under ``paths`` force-noise draws.
 
-    Each host-side chunk is one :func:`jaxdrift.monte_carlo` call (vmapped over its paths); its
-    section forces are counted (rainflow) and dropped before the next, so memory stays at one chunk.
+    Each host-side chunk is one :func:`jaxdrift.monte_carlo` call (vmapped over its paths; every
+    chunk has the same size, the last one padded, so one compilation serves all); its section
+    forces are counted (rainflow) and dropped, so memory stays at two chunks. The next chunk is
+    simulated in a worker thread while the host counts the current one.
     """
+    from concurrent.futures import ThreadPoolExecutor
+
     from tqdm import tqdm
 
     fn = _MCPath(sf)
     key = jax.random.key(seed)
     n = sf.ts.shape[0]
+    size = max(1, min(int(chunk), int(paths)))
     out = np.full((paths, len(variants), 2), np.nan)
+
+    def simulate(start):
+        gidx = np.minimum(np.arange(start, start + size), paths - 1).astype(np.int32)
+        res = monte_carlo(fn, size, key=key, save_ts=np.asarray(sf.ts), keep_paths=True,
+                          models=(gidx, np.full(size, float(sigma))), chunk_size=size, progress=False)
+        return res.ys, res.result
+
+    starts = list(range(0, paths, size))
     bar = tqdm(total=paths, unit="path", desc="durability noise paths", disable=not progress)
     try:
-        for start in range(0, paths, chunk):
-            size = min(chunk, paths - start)
-            gidx = np.arange(start, start + size, dtype=np.int32)
-            res = monte_carlo(fn, size, key=key, save_ts=np.asarray(sf.ts), keep_paths=True,
-                              models=(gidx, np.full(size, float(sigma))), chunk_size=size,
-                              progress=False)
-            for i in range(size):
-                if res.result[i] == 0:
-                    out[start + i] = _damages(res.ys[i].reshape(n, -1), variants, basquin_k)
-            bar.update(size)
+        with ThreadPoolExecutor(max_workers=1) as pool:
+            pending = pool.submit(simulate, starts[0]) if starts else None
+            for k, start in enumerate(starts):
+                ys, result = pending.result()
+                if k + 1 < len(starts):
+                    pending = pool.submit(simulate, starts[k + 1])
+                real = min(size, paths - start)
+                for i in range(real):
+                    if result[i] == 0:
+                        out[start + i] = _damages(ys[i].reshape(n, -1), variants, basquin_k)
+                bar.update(real)
     finally:
         bar.close()
     return out
