@@ -122,7 +122,9 @@ def _fig_hist(plt, res):
         ax = axes[j]
         for v, h in hist.items():
             if f in h:
-                ax.step(centers / 1e3, np.maximum(h[f], 0.3), where="mid", color=COLORS[v], label=v, lw=1.0)
+                y = np.asarray(h[f], float)
+                ax.step(centers / 1e3, np.where(y > 0, y, np.nan), where="mid", color=COLORS[v], label=v,
+                        lw=1.0)  # empty bins left blank on the log axis
         ax.set_yscale("log")
         ax.set_xlabel(f"rainflow range of {f} [kN]")
         ax.set_title(f"{f}: cycles per range bin (ASTM E1049-85 rainflow)")
@@ -153,7 +155,6 @@ def _fig_ratio(plt, res):
     ax.axhline(1.0, color="0.5", lw=0.8)
     ax.set_xticks(range(len(names)), names)
     ax.set_ylabel("pseudo-damage / stabilised")
-    ax.set_yscale("log")
     k = s["basquin_k"]
     mcs = s["monte_carlo"]
     ax.set_title(f"damage ratio to the stabilised simulation (K = {k:g}); band: {mcs['paths']} draws of "
