@@ -198,7 +198,8 @@ def test_checker_catches_a_broken_tree(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["solve_ode", "monte_carlo", "HalfCarParams", "diagnose_vehicle_run",
-                                  "run_attitude_diagnosis", "read_vehicle_run", "run_paper_study"])
+                                  "run_attitude_diagnosis", "read_vehicle_run", "run_paper_study",
+                                  "durability_analysis"])
 def test_public_names_resolve(name):
     import jaxdrift
 

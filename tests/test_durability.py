@@ -113,6 +113,11 @@ def test_filtered_derivatives_beat_plain_differences_on_noisy_pitch():
     assert err_f < 0.1 * err_p
     _, _, _, clean = filtered_derivatives(beta, 1 / fs)
     assert clean["kind"] == "none"
+    # a measured rate is used (filtered by its own rule) instead of differentiating the angle
+    noisy_rate = true_rate + 0.01 * rng.standard_normal(t.size)
+    _, db_r, ddb_r, info_r = filtered_derivatives(noisy, 1 / fs, beta_rate=noisy_rate)
+    assert info_r["rate_source"] == "measured beta_rate" and [x["signal"] for x in info_r["signals"]] == ["beta", "beta_rate"]
+    assert np.sqrt(np.mean((db_r - true_rate)[500:-500] ** 2)) < 0.3 * 0.01
 
 
 def test_pitch_spring_rule_and_integration_step_by_hand():
@@ -217,6 +222,9 @@ def test_cli_writes_the_outputs(short_run, tmp_path, capsys):
     assert rep["provenance"]["input_sha256"] == hashlib.sha256(path.read_bytes()).hexdigest()
     assert rep["derivative_filter"]["kind"] and "cutoff_hz" in rep["derivative_filter"]
     assert rep["pitch_spring"]["torque_max_abs"] > 0
+    # the corrections are applied: the extended model's enforced moment is the smaller one
+    em = rep["enforced_moment"]
+    assert em["extended"]["rms"] < 0.8 * em["stabilised"]["rms"], em
     header = (out / "section_forces.csv").read_text().splitlines()[0].split(",")
     assert header[:3] == ["t", "force_driven_f3", "force_driven_f4"] and "stabilised_enforced_moment" in header
     data = np.loadtxt(out / "section_forces.csv", delimiter=",", skiprows=1)
