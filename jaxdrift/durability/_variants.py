@@ -53,9 +53,10 @@ def pitch_spring_rule(params: dict, k_rot: float | None = None, d_rot: float | N
     Rule: the spring makes the vehicle's free pitch mode (inertia ``J = I + m1 b^2 + m2 a^2``) a
     critically damped oscillator whose frequency is ``SPRING_FREQUENCY_RATIO`` (one tenth) of the
     body's pitch mode on its suspension, ``f_pitch = sqrt((k3 b^2 + k4 a^2) / I) / (2 pi)``. A
-    decade between the two keeps the spring out of the band the suspension works in (its torque
-    at ``f_pitch`` is about 1 % of the suspension's pitch moment) while it still stops the drift
-    within a few seconds. So ``k_rot = J (2 pi 0.1 f_pitch)^2`` and ``d_rot = 2 sqrt(k_rot J)``;
+    decade between the two keeps the spring mostly out of the band the suspension works in (on the
+    seed's vehicle its stiffness is 1 % of the suspension's pitch stiffness ``k3 b^2 + k4 a^2``; with
+    its damping, its impedance at ``f_pitch`` is 9 % of the suspension's) while it still stops the
+    drift within a few seconds. So ``k_rot = J (2 pi 0.1 f_pitch)^2`` and ``d_rot = 2 sqrt(k_rot J)``;
     either may be given instead (``d_rot`` then defaults to critical damping of the given ``k_rot``).
     """
     p = params
