@@ -275,3 +275,20 @@ def test_run_without_pitch_gives_the_unstabilised_variants_only(short_run):
     assert s["reference"] is None and s["damage_ratio_to_stabilised"] == {}
     assert s["monte_carlo"]["paths"] == 0 and s["monte_carlo"]["noise_N"] > 0  # from the forces themselves
     assert s["runs"]["force_driven"]["f3"]["damage"] > 0
+
+
+def test_band_limited_upsampling_keeps_samples_and_the_wheel_hop():
+    from jaxdrift.durability._variants import upsample_forces
+
+    fs, m = 200.0, 5
+    t = np.arange(2001) / fs
+    x = np.stack([4000 + 500 * np.sin(2 * np.pi * 22.0 * t), 3800 + 300 * np.cos(2 * np.pi * 3.0 * t)], axis=1)
+    up = upsample_forces(x, m)
+    assert up.shape == ((t.size - 1) * m + 1, 2)
+    np.testing.assert_array_equal(up[::m], x)
+    tf = np.arange(up.shape[0]) / (fs * m)
+    exact = 4000 + 500 * np.sin(2 * np.pi * 22.0 * tf)
+    mid = slice(200 * m, -200 * m)
+    err_up = np.max(np.abs(up[mid, 0] - exact[mid]))
+    err_lin = np.max(np.abs(np.interp(tf, t, x[:, 0])[mid] - exact[mid]))
+    assert err_up < 0.01 * 500 and err_lin > 0.05 * 500  # linear interpolation loses ~6 % here
