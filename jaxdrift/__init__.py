@@ -130,6 +130,16 @@ _EXPORTS.update({
     "rotation_matrix": ("models._quaternion", "rotation_matrix"),
 })
 
+# --- durability (#15) ---
+_EXPORTS.update({
+    "DurabilityResult": ("durability._analysis", "DurabilityResult"),
+    "durability_analysis": ("durability._analysis", "durability_analysis"),
+    "section_forces": ("durability._analysis", "section_forces"),
+    "pitch_spring_rule": ("durability._variants", "pitch_spring_rule"),
+    "rainflow_cycles": ("durability._damage", "rainflow_cycles"),
+    "pseudo_damage": ("durability._damage", "pseudo_damage"),
+})
+
 __all__ = sorted(_EXPORTS)
 
 
@@ -238,3 +248,9 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .models._quaternion import omega_matrix
     from .analysis._attitude_paths import quaternion_sde_paths
     from .models._quaternion import rotation_matrix
+    from .durability._analysis import DurabilityResult
+    from .durability._analysis import durability_analysis
+    from .durability._analysis import section_forces
+    from .durability._variants import pitch_spring_rule
+    from .durability._damage import rainflow_cycles
+    from .durability._damage import pseudo_damage

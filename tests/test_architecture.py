@@ -2,7 +2,7 @@
 
 Layers (a module may import only the layers listed for its own; ``errors`` is open to all):
 
-    solvers   <- ensemble <- analysis <- diagnosis <- studies <- cli
+    solvers   <- ensemble <- analysis <- diagnosis <- studies <- durability <- cli
     models    <-------------'            io ---'
     io (numpy only)
 
@@ -33,7 +33,9 @@ ALLOWED = {
     "analysis": {"models", "solvers", "ensemble"},
     "diagnosis": {"models", "analysis", "solvers", "ensemble", "io"},
     "studies": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis"},
-    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies"},
+    # durability reuses the paper study's simulations (studies): it sits between studies and cli
+    "durability": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies"},
+    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability"},
 }
 # third-party packages a layer must not import
 FORBIDDEN_THIRD_PARTY = {
@@ -196,7 +198,8 @@ def test_checker_catches_a_broken_tree(tmp_path):
 
 
 @pytest.mark.parametrize("name", ["solve_ode", "monte_carlo", "HalfCarParams", "diagnose_vehicle_run",
-                                  "run_attitude_diagnosis", "read_vehicle_run", "run_paper_study"])
+                                  "run_attitude_diagnosis", "read_vehicle_run", "run_paper_study",
+                                  "durability_analysis"])
 def test_public_names_resolve(name):
     import jaxdrift
 

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-NOTEBOOKS = ["section2_pointmass.py", "section4_halfcar.py", "drift_variance.py"]
+NOTEBOOKS = ["section2_pointmass.py", "section4_halfcar.py", "drift_variance.py", "durability.py"]
 
 
 @pytest.mark.parametrize("name", NOTEBOOKS)
@@ -27,6 +27,8 @@ def test_notebook_is_a_valid_percent_notebook(name):
     ("section2_pointmass.py", ["fig2_pointmass_std.png"]),
     ("section4_halfcar.py", ["fig4_road_forces.png", "fig8_enforced_moment.png", "summary.json"]),
     ("drift_variance.py", ["drift_variance.png", "drift_variance.json"]),
+    ("durability.py", ["damage_vs_duration.png", "pitch_spring_sweep.png", "durability_notebook.json",
+                       "durability.json", "damage_ratio.png"]),
 ])
 def test_notebook_runs_in_small_configuration(name, expected, tmp_path):
     env = dict(os.environ, JAXDRIFT_NOTEBOOK_SMALL="1", JAXDRIFT_NOTEBOOK_OUT=str(tmp_path), MPLBACKEND="Agg",

@@ -20,6 +20,7 @@ _SUBCOMMANDS = [
     "jaxdrift.cli._paper",
     "jaxdrift.cli._diagnose",
     "jaxdrift.cli._attitude",
+    "jaxdrift.cli._durability",
 ]
 
 

@@ -122,8 +122,9 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
                       hill_height: float = 2.0, extra_times=None) -> dict:
     """True signals of the road-driven vehicle at ``t = k / fs`` (and at ``extra_times``).
 
-    Returns a dict of arrays: ``t, f1, f2, z1, z2, z3, beta, beta_rate, s1, s2, zeta1, zeta2``
-    and, when ``extra_times`` is given, ``extra`` with the forces at those times.
+    Returns a dict of arrays: ``t, f1, f2, z1, z2, z3, beta, beta_rate, s1, s2, ds1, ds2, zeta1,
+    zeta2`` (``ds1, ds2``: the spring travel rates, so that the true section forces are
+    ``f3 = k3 s1 + d3 ds1``, ``f4 = k4 s2 + d4 ds2``) and, when ``extra_times`` is given, ``extra`` with the forces at those times.
     """
     import jax
     import jax.numpy as jnp
@@ -157,10 +158,13 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
         zeta = np.asarray(zeta)
     y = ys_all[:n]
     sb = np.sin(y[:, 3])
+    cb_rate = np.cos(y[:, 3]) * y[:, 7]
     out = {"t": t, "f1": f[:n, 0], "f2": f[:n, 1], "z1": y[:, 0], "z2": y[:, 1], "z3": y[:, 2],
            "beta": y[:, 3], "beta_rate": y[:, 7],
            "s1": y[:, 2] - y[:, 0] - true_params["b"] * sb,
            "s2": y[:, 2] - y[:, 1] + true_params["a"] * sb,
+           "ds1": y[:, 6] - y[:, 4] - true_params["b"] * cb_rate,
+           "ds2": y[:, 6] - y[:, 5] + true_params["a"] * cb_rate,
            "zeta1": zeta[:n, 0], "zeta2": zeta[:n, 1]}
     if extra.size:
         out["extra"] = {"t": extra, "f1": f[n:, 0], "f2": f[n:, 1]}
