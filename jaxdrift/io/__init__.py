@@ -17,5 +17,9 @@ from ._csvio import (
     read_model as read_model,
     write_vehicle_run as write_vehicle_run,
 )
+from ._attitude_files import (
+    read_attitude_run as read_attitude_run,
+    read_sensors as read_sensors,
+)
 
-__all__ = ['DEFAULT_MODEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'read_header', 'read_model', 'read_vehicle_run', 'write_vehicle_run']
+__all__ = ['DEFAULT_MODEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run', 'write_vehicle_run']

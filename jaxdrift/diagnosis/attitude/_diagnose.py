@@ -24,7 +24,6 @@ Methods (all on the run itself, numpy; see docs/attitude.md for the derivations)
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import sys
@@ -43,12 +42,13 @@ from ...models._quaternion import (
     rotation_matrix_np,
     skew_np,
 )
+from ...models._accel_array import check_positions
+from ...io._attitude_files import read_attitude_run, read_sensors as _read_sensors
 
 __all__ = ["run_attitude_diagnosis", "read_attitude_run", "read_sensors", "estimate_white_noise", "diagnose_attitude"]
 
 SCHEMA = "jaxdrift.diagnosis/1"
 CHANNELS = ("wx", "wy", "wz")
-Q_COLS = ("qw", "qx", "qy", "qz")
 Z_SIGNIFICANT = 5.0  # |estimate - null| / SE for a systematic finding (false alarms ~ 1e-6 per test)
 DRIFT_LR = 16.0  # REML likelihood-ratio threshold for a bias random walk
 DRIFT_LR_GIVEN_BIAS = 6.0  # ... when a constant bias is significant on the channel (p ~ 0.7 %)
@@ -63,7 +63,6 @@ DRIFT_FLOOR = 1e-7  # rad/s/sqrt(s)
 # run and can pass the statistical tests (a noise-free 30 s run at 200 Hz showed an apparent drift of
 # 3e-6 rad/s/sqrt(s)); such runs are synthetic, and the floors are raised by this factor
 NOISE_FREE_FLOOR_FACTOR = 30.0
-QUAT_NORM_TOL = 1e-3
 MIN_INTERVAL_ROWS = 20
 DRIFT_OFF_DEG = 0.5
 G = 9.81
@@ -75,184 +74,9 @@ def _usage_error(msg):
     return UsageError(msg)
 
 
-# --------------------------------------------------------------------------- input
-
-
-def _float_cells(path, lines, first_line, names, ncol):
-    """Parse a block of CSV lines into floats (NaN for empty cells); errors name the row and column."""
-    rows = [ln.split(",") for ln in lines]
-    for i, r in enumerate(rows):
-        if len(r) != ncol:
-            raise _usage_error(f"{path}, row {first_line + i}: {len(r)} cells, expected {ncol} as in the header")
-    arr = np.char.strip(np.array(rows, dtype=str)) if rows else np.zeros((0, ncol), str)
-    empty = arr == ""
-    arr = np.where(empty, "nan", arr)
-    try:
-        return arr.astype(float)
-    except ValueError:
-        for i, r in enumerate(arr):
-            for j, c in enumerate(r):
-                try:
-                    float(c)
-                except ValueError:
-                    raise _usage_error(f"{path}, row {first_line + i}, column {names[j]}: not a number: {c!r}") from None
-        raise
-
-
-def _decimal_step(s):
-    s = s.strip().lower()
-    mant, _, exp = s.partition("e")
-    e = int(exp) if exp else 0
-    dec = len(mant.partition(".")[2])
-    return 10.0 ** (e - dec)
-
-
-def read_attitude_run(path):
-    """Read and validate an attitude run CSV. Returns a dict; raises UsageError on bad input."""
-    if not os.path.isfile(path):
-        raise _usage_error(f"{path}: no such file")
-    with open(path) as fh:
-        text = fh.read()
-    lines = text.splitlines()
-    while lines and not lines[-1].strip():
-        lines.pop()
-    if not lines:
-        raise _usage_error(f"{path}: empty file")
-    names = [c.strip() for c in lines[0].split(",")]
-    if len(set(names)) != len(names):
-        dup = sorted({c for c in names if names.count(c) > 1})
-        raise _usage_error(f"{path}, row 1: duplicate column(s) {', '.join(dup)}")
-    for c in ("t",) + CHANNELS:
-        if c not in names:
-            raise _usage_error(f"{path}, row 1: required column {c} missing (attitude runs need t, wx, wy, wz)")
-    body = lines[1:]
-    if len(body) < 16:
-        raise _usage_error(f"{path}: only {len(body)} data rows; an attitude run needs at least 16")
-    ncol = len(names)
-    blocks = []
-    for s in range(0, len(body), 50_000):
-        blocks.append(_float_cells(path, body[s : s + 50_000], s + 2, names, ncol))
-    data = np.concatenate(blocks, 0)
-    col = {c: i for i, c in enumerate(names)}
-    # required columns: finite everywhere
-    for c in ("t",) + CHANNELS:
-        bad = ~np.isfinite(data[:, col[c]])
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise _usage_error(f"{path}, row {i + 2}, column {c}: empty, NaN or inf (required column)")
-    t = data[:, col["t"]]
-    dts = np.diff(t)
-    if np.any(dts <= 0):
-        i = int(np.argmax(dts <= 0))
-        raise _usage_error(f"{path}, row {i + 3}, column t: time not strictly increasing ({t[i]!r} then {t[i + 1]!r})")
-    dt = (t[-1] - t[0]) / (len(t) - 1)
-    jitter = np.abs(dts - dt) / dt
-    if np.any(jitter > 1e-6):
-        i = int(np.argmax(jitter > 1e-6))
-        raise _usage_error(
-            f"{path}, row {i + 3}, column t: non-uniform sampling (step {dts[i]:.9g} s, mean step {dt:.9g} s; "
-            "relative jitter must stay below 1e-6)"
-        )
-    w = data[:, [col[c] for c in CHANNELS]]
-    # reference attitude: all four columns or none; per row all four cells or none
-    present = [c for c in Q_COLS if c in col]
-    q_ref = None
-    if present:
-        if len(present) != 4:
-            missing = [c for c in Q_COLS if c not in col]
-            raise _usage_error(f"{path}, row 1: reference attitude needs qw, qx, qy, qz; missing {', '.join(missing)}")
-        q_ref = data[:, [col[c] for c in Q_COLS]]
-        fin = np.isfinite(q_ref)
-        partial = fin.any(1) & ~fin.all(1)
-        if partial.any():
-            i = int(np.argmax(partial))
-            j = int(np.argmax(~fin[i]))
-            raise _usage_error(f"{path}, row {i + 2}, column {Q_COLS[j]}: empty or NaN while other quaternion cells are set")
-        inf = np.isinf(q_ref).any(1)
-        if inf.any():
-            i = int(np.argmax(inf))
-            raise _usage_error(f"{path}, row {i + 2}: infinite quaternion component")
-        have = fin.all(1)
-        norms = np.linalg.norm(np.where(have[:, None], q_ref, 1.0), axis=1)
-        bad = have & (np.abs(norms - 1.0) > QUAT_NORM_TOL)
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise _usage_error(
-                f"{path}, row {i + 2}, columns qw..qz: quaternion norm {norms[i]:.6g} is far from 1 "
-                f"(tolerance {QUAT_NORM_TOL:g})"
-            )
-        if not have.any():
-            q_ref = None
-        else:
-            q_ref = np.where(have[:, None], q_ref / norms[:, None], np.nan)
-    # accelerometer columns a1x, a1y, a1z, ...
-    acc_names = []
-    k = 1
-    while f"a{k}x" in col or f"a{k}y" in col or f"a{k}z" in col:
-        trip = [f"a{k}{a}" for a in "xyz"]
-        for c in trip:
-            if c not in col:
-                raise _usage_error(f"{path}, row 1: accelerometer {k} needs {', '.join(trip)}; column {c} missing")
-        acc_names.append(trip)
-        k += 1
-    acc = None
-    if acc_names:
-        idx = [[col[c] for c in trip] for trip in acc_names]
-        acc = data[:, idx]  # (n, N, 3)
-        bad = ~np.isfinite(acc)
-        if bad.any():
-            i, s_, a_ = (int(v[0]) for v in np.nonzero(bad))
-            raise _usage_error(f"{path}, row {i + 2}, column a{s_ + 1}{'xyz'[a_]}: empty, NaN or inf")
-    known = {"t", *CHANNELS, *Q_COLS, *(c for trip in acc_names for c in trip)}
-    extra = [c for c in names if c not in known]
-    stray_acc = [c for c in extra if len(c) >= 3 and c[0] == "a" and c[1:-1].isdigit() and c[-1] in "xyz"]
-    if stray_acc:
-        raise _usage_error(f"{path}, row 1: accelerometer column(s) {', '.join(stray_acc)} out of sequence (a1x.. must be contiguous)")
-    # quantisation step of the rate columns, from the text (to tell noise from rounding)
-    sample = body[:: max(1, len(body) // 5000)]
-    steps = []
-    wi = [col[c] for c in CHANNELS]
-    for ln in sample:
-        cells = ln.split(",")
-        for j in wi:
-            try:
-                steps.append(_decimal_step(cells[j]))
-            except (ValueError, IndexError):
-                pass
-    quant = float(np.sqrt(np.mean(np.square(steps)) / 12.0)) if steps else 0.0
-    return {"path": path, "t": t, "dt": dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra, "quantisation": quant}
-
-
 def read_sensors(path, n_expected=None):
     """Read and validate ``{"positions": [[x, y, z], ...]}``: N >= 4 and positions not coplanar."""
-    if not os.path.isfile(path):
-        raise _usage_error(f"{path}: no such file")
-    try:
-        with open(path) as fh:
-            obj = json.load(fh)
-    except json.JSONDecodeError as e:
-        raise _usage_error(f"{path}: not valid JSON ({e})") from None
-    if not isinstance(obj, dict) or "positions" not in obj:
-        raise _usage_error(f'{path}: expected an object {{"positions": [[x, y, z], ...]}}')
-    pos = obj["positions"]
-    if not isinstance(pos, list):
-        raise _usage_error(f"{path}: positions must be a list of [x, y, z]")
-    for i, p in enumerate(pos):
-        if not (isinstance(p, list) and len(p) == 3 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
-            raise _usage_error(f"{path}: positions[{i}] (sensor {i + 1}) must be three numbers, got {p!r}")
-        if not all(math.isfinite(v) for v in p):
-            raise _usage_error(f"{path}: positions[{i}] (sensor {i + 1}) is not finite")
-    r = np.asarray(pos, float).reshape(-1, 3)
-    if r.shape[0] < 4:
-        raise _usage_error(f"{path}: {r.shape[0]} sensor(s); the array needs at least 4 (m + 1 >= 4, section 3.1)")
-    if n_expected is not None and r.shape[0] != n_expected:
-        raise _usage_error(f"{path}: {r.shape[0]} positions but the run has {n_expected} accelerometers (a1x..a{n_expected}z)")
-    from ...models._accel_array import check_positions
-
-    msg = check_positions(r)
-    if msg:
-        raise _usage_error(f"{path}: {msg}")
-    return r
+    return _read_sensors(path, n_expected, check_geometry=check_positions)
 
 
 # --------------------------------------------------------------------------- noise
