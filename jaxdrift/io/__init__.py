@@ -29,8 +29,12 @@ from ._outputs import (
     write_json as write_json,
 )
 from ._provenance import provenance as provenance
+from ._attitude_files import (
+    read_attitude_run as read_attitude_run,
+    read_sensors as read_sensors,
+)
 
 __all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES',
            'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
-           'check_outputs', 'load_run', 'provenance', 'read_header', 'read_model', 'read_vehicle_run',
+           'check_outputs', 'load_run', 'provenance', 'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
            'write_json', 'write_vehicle_run']

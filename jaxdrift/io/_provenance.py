@@ -9,7 +9,17 @@ import sys
 
 from ._outputs import sha256_file
 
-__all__ = ["provenance"]
+__all__ = ["provenance", "jaxdrift_version"]
+
+
+def jaxdrift_version() -> str:
+    """The installed distribution's version (the package's ``__version__`` comes from it too)."""
+    from importlib import metadata
+
+    try:
+        return metadata.version("jaxdrift")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
 
 
 def provenance(command: str, inputs=(), *, model=None, options=None) -> dict:
@@ -17,8 +27,6 @@ def provenance(command: str, inputs=(), *, model=None, options=None) -> dict:
 
     ``inputs``: paths read (each gets its name, size and SHA-256). ``model``: a short description
     or the parameters used. ``options``: the command's options (JSON-able values)."""
-    from .. import __version__
-
     files = []
     for p in inputs:
         if p is None:
@@ -26,7 +34,7 @@ def provenance(command: str, inputs=(), *, model=None, options=None) -> dict:
         files.append({"file": os.path.basename(str(p)), "path": os.path.abspath(str(p)),
                       "bytes": os.path.getsize(p), "sha256": sha256_file(p)})
     return {
-        "jaxdrift_version": __version__,
+        "jaxdrift_version": jaxdrift_version(),
         "command": command,
         "inputs": files,
         "model": model,
