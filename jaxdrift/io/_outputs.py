@@ -30,7 +30,7 @@ import threading
 from ..errors import InputError
 
 __all__ = ["COMMIT_LOCK", "PENDING", "MANIFEST", "check_outputs", "atomic_path", "atomic_dir",
-           "write_json", "write_text", "sha256_file", "finite_json", "remove_pending"]
+           "write_json", "write_text", "write_table", "sha256_file", "finite_json", "remove_pending"]
 
 #: held while temporary files are renamed into place
 COMMIT_LOCK = threading.RLock()
@@ -204,3 +204,20 @@ def write_text(path, text: str, option: str = "output") -> None:
 def write_json(path, obj, option: str = "output", indent: int = 2) -> None:
     """Strict JSON (non-finite floats as null), atomically."""
     write_text(path, json.dumps(finite_json(obj), indent=indent, allow_nan=False) + "\n", option)
+
+
+def write_table(path, columns: dict, option: str = "output") -> None:
+    """Columns of equal length as CSV (shortest round-trip decimals) or Parquet (by extension),
+    atomically."""
+    import pyarrow as pa
+
+    table = pa.table({k: pa.array(v) for k, v in columns.items()})
+    with atomic_path(path, option) as tmp:
+        if str(path).lower().endswith((".parquet", ".pq")):
+            import pyarrow.parquet as pq
+
+            pq.write_table(table, tmp)
+        else:
+            import pyarrow.csv as pcsv
+
+            pcsv.write_csv(table, tmp, pcsv.WriteOptions(quoting_style="none"))
