@@ -10,8 +10,6 @@ import argparse
 import json
 import math
 import os
-import shutil
-import tempfile
 
 INS_DESCRIPTION = """\
 The seed's INS demonstration (section 3.2, Figs. 1-2): a plausible 10-minute, 1000 Hz vehicle
@@ -85,34 +83,23 @@ def add_parser(subparsers) -> None:
     p.set_defaults(func=run_accel_array)
 
 
-def _prepare(out, usage):
-    if os.path.exists(out) and not os.path.isdir(out):
-        raise usage(f"--out {out}: exists and is not a folder")
-    parent = os.path.dirname(os.path.abspath(out)) or "."
-    if not os.path.isdir(parent):
-        raise usage(f"--out {out}: parent folder {parent} does not exist")
-    return tempfile.mkdtemp(prefix=".jaxdrift-tmp-", dir=parent)
+def _run_into(out, study, command=None, summary_name=None, options=None, names=()):
+    """Check ``out`` before computing, run ``study(tmp_dir)`` and move its files into ``out`` only
+    if it succeeds (:func:`jaxdrift.io.atomic_dir`); the summary JSON gets the provenance."""
+    from ..io import atomic_dir, check_outputs, provenance
 
-
-def _run_into(out, study):
-    """Run ``study(tmp_dir)`` and move its files into ``out`` only if it succeeds (nothing half-written)."""
-    from ..errors import UsageError
-
-    tmp = _prepare(out, UsageError)
-    try:
+    check_outputs([("--out", out, "dir", names)])
+    with atomic_dir(out, "--out") as tmp:
         summary = study(tmp)
-        _finish(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+        if summary_name:
+            summary["provenance"] = provenance(command, [], options=options or {})
+            with open(os.path.join(tmp, summary_name), "w") as fh:
+                json.dump(summary, fh, indent=1)
     return summary
 
 
-def _finish(tmp, out):
-    os.makedirs(out, exist_ok=True)
-    for name in os.listdir(tmp):
-        os.replace(os.path.join(tmp, name), os.path.join(out, name))
-    shutil.rmtree(tmp, ignore_errors=True)
+def _options(args) -> dict:
+    return {k: v for k, v in vars(args).items() if k not in ("func", "command", "quiet", "verbose", "version")}
 
 
 def _plt():
@@ -136,12 +123,13 @@ def run_ins(args) -> int:
         raise UsageError("--paths must be at least 2")
     summary = _run_into(args.out, lambda tmp: ins_study(tmp, seed=args.seed, duration=args.duration,
                                                         dt=1.0 / args.rate, sigma_m=args.sigma,
-                                                        n_paths=args.paths, method=args.method))
+                                                        n_paths=args.paths, method=args.method, progress=True),
+                        "ins", "ins_summary.json", _options(args))
     print(json.dumps(summary["envelope"], indent=1))
     return 0
 
 
-def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, method="expmap"):
+def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, method="expmap", progress=False):
     import numpy as np
     from scipy import stats
 
@@ -173,6 +161,9 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
     errs = []  # body-frame error angles (rotation vector of S_true^T S_rec)
     ang_err = []
     first = None
+    from ._common import progress as _bar
+
+    bar = _bar(total=n_paths, desc="ins", unit="path", enabled=progress)
     for p in range(n_paths):
         w_meas = w_true + rng.normal(size=w_true.shape) * sigma_m
         q_rec = recon(w_meas, method if p == 0 else "expmap")
@@ -182,6 +173,8 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
         errs.append(e[:: max(1, n // 2000)])
         d = quat_to_euler_np(q_rec) - true_ang
         ang_err.append(np.angle(np.exp(1j * d))[:: max(1, n // 2000)])
+        bar.update(1)
+    bar.close()
     ts = t[:: max(1, n // 2000)]
     errs = np.array(errs)
     ang_err = np.array(ang_err)
@@ -286,7 +279,8 @@ def run_quaternion_drift(args) -> int:
     if args.paths < 10:
         raise UsageError("--paths must be at least 10")
     summary = _run_into(args.out, lambda tmp: quaternion_drift_study(tmp, sigma=args.sigma, t1=args.t1, dt=args.dt,
-                                                                     n_paths=args.paths, seed=args.seed))
+                                                                     n_paths=args.paths, seed=args.seed),
+                        "quaternion-drift", "quaternion_summary.json", _options(args))
     print(json.dumps(summary, indent=1))
     return 0
 
@@ -364,7 +358,8 @@ def run_accel_array(args) -> int:
         raise UsageError("--paths must be at least 10")
     summary = _run_into(args.out, lambda tmp: accel_array_study(tmp, seed=args.seed, duration=args.duration,
                                                                 dt=1.0 / args.rate, noise=args.noise,
-                                                                n_paths=args.paths))
+                                                                n_paths=args.paths),
+                        "accel-array", "accel_summary.json", _options(args))
     print(json.dumps(summary, indent=1))
     return 0
 
