@@ -119,6 +119,8 @@ def run_ins(args) -> int:
 
     for k in ("duration", "rate", "sigma"):
         _positive(k, getattr(args, k), UsageError)
+    if args.duration < 2.0:
+        raise UsageError(f"--duration must be at least 2 s (the grade slopes are fitted from t = 1 s), got {args.duration}")
     if args.paths < 2:
         raise UsageError("--paths must be at least 2")
     summary = _run_into(args.out, lambda tmp: ins_study(tmp, seed=args.seed, duration=args.duration,
@@ -238,7 +240,8 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
         ax.loglog(tg[1:], np.degrees(N * np.sqrt(tg[1:])), ":", color=f"C{gi}", lw=0.8)
         ax.loglog(tg[1:], np.degrees(B * tg[1:]), "-.", color=f"C{gi}", lw=0.8)
         sl_arw = np.polyfit(np.log(tg[100:]), np.log(s_arw[100:]), 1)[0]
-        sl_bi = np.polyfit(np.log(tg[100:ng // 10]), np.log(s_bi[100:ng // 10]), 1)[0]
+        early = max(ng // 10, 110)  # the first tenth of the run, at least 10 points past t = 1 s
+        sl_bi = np.polyfit(np.log(tg[100:early]), np.log(s_bi[100:early]), 1)[0]
         grade_out[gname] = {**g, "slope_arw": float(sl_arw), "slope_bias_instability_early": float(sl_bi),
                             "error_deg_at_end_arw": float(s_arw[-1]), "error_deg_at_end_bias_instability": float(s_bi[-1])}
     ax.set_xlabel("t [s]")

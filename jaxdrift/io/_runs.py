@@ -145,8 +145,12 @@ def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, 
             f"are {step:.9g} s; relative deviation {float(dev[i - 1] / step):.2g} > {JITTER_TOL:g}{res})")
     if np.max(dev) > JITTER_TOL * step:
         # uniform within the printed resolution only: the exact grid is the run's time base
-        dt = step if fs else float((t[-1] - t[0]) / (n - 1))
-        t = t[0] + np.arange(n) * dt
+        # least-squares line through (k, t_k): the rounding errors average out
+        k = np.arange(n, dtype=np.float64)
+        kc = k - 0.5 * (n - 1)
+        tbar = float(np.mean(t))
+        dt = step if fs else float(np.dot(kc, t - tbar) / np.dot(kc, kc))
+        t = tbar + kc * dt
         note = (f"{fname}: column t is printed with a resolution of {quantum:.3g} s; the run uses "
                 f"the uniform grid t0 + k dt with dt = {dt:.12g} s")
     duration = t[-1] - t[0]
