@@ -39,6 +39,18 @@ PENDING: set[str] = set()
 MANIFEST = "jaxdrift-manifest.json"
 
 
+def _commit_hook(path) -> None:
+    """Tests of Ctrl-C while writing: with ``JAXDRIFT_TEST_COMMIT_DELAY_S`` set, say so on stderr
+    and wait that long inside the commit (the interrupt handler must wait for it)."""
+    delay = os.environ.get("JAXDRIFT_TEST_COMMIT_DELAY_S")
+    if delay:
+        import sys
+        import time
+
+        print(f"jaxdrift: committing {path}", file=sys.stderr, flush=True)
+        time.sleep(float(delay))
+
+
 def _real(p) -> str:
     return os.path.realpath(os.path.abspath(os.fspath(p)))
 
@@ -128,6 +140,7 @@ def atomic_path(path, option: str = "output"):
     try:
         yield tmp
         with COMMIT_LOCK:
+            _commit_hook(path)
             os.chmod(tmp, _umask_mode())  # mkstemp makes it private; a result is an ordinary file
             os.replace(tmp, path)
             PENDING.discard(tmp)
@@ -169,8 +182,10 @@ def atomic_dir(path, option: str = "--out"):
             os.makedirs(path, exist_ok=True)
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(os.path.join(path, MANIFEST))
-            for n in names:
+            for i, n in enumerate(names):
                 os.replace(os.path.join(tmp, n), os.path.join(path, n))
+                if i == 0:
+                    _commit_hook(path)
             mtmp = os.path.join(tmp, MANIFEST)
             with open(mtmp, "w") as fh:
                 json.dump(manifest, fh, indent=1)
@@ -220,4 +235,6 @@ def write_table(path, columns: dict, option: str = "output") -> None:
         else:
             import pyarrow.csv as pcsv
 
-            pcsv.write_csv(table, tmp, pcsv.WriteOptions(quoting_style="none"))
+            with open(tmp, "wb") as fh:  # the header unquoted, as every CSV of the contract
+                fh.write((",".join(columns) + "\n").encode())
+                pcsv.write_csv(table, fh, pcsv.WriteOptions(include_header=False, quoting_style="none"))
