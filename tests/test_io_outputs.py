@@ -265,3 +265,19 @@ def test_warnings_are_one_line(capsys):
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and err.startswith("jaxdrift diagnose: warning: divide by zero")
     assert "RuntimeWarning" in err
+
+
+def test_quiet_and_verbose(tmp_path, capsys, run_csv, monkeypatch):
+    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+
+    def fake(run, model, plots, log=None):
+        log.append("step 1: best force_offset[f2]")
+        return {"kind": "vehicle"}
+
+    monkeypatch.setattr(dv, "diagnose_vehicle_run", fake)
+    assert cli.main(["-v", "diagnose", str(run_csv), "--json", str(tmp_path / "v.json")]) == 0
+    err = capsys.readouterr().err
+    assert "read 1201 samples at 200 Hz (csv)" in err and "step 1: best force_offset[f2]" in err
+    assert "default model" in err and "report written" in err
+    assert cli.main(["-q", "diagnose", str(run_csv), "--json", str(tmp_path / "q.json")]) == 0
+    assert capsys.readouterr().err == ""

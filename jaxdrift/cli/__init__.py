@@ -73,6 +73,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         rc = args.func(args)
     except (UsageError, InputError) as e:
+        _common.close_progress_bars()
         print(f"jaxdrift {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

@@ -51,6 +51,15 @@ def progress(total=None, desc: str = "", unit: str = "it", enabled: bool = True)
                 disable=not enabled or VERBOSITY < 1, dynamic_ncols=True)
 
 
+def close_progress_bars() -> None:
+    """Clear bars still on screen, so that an error message starts its own line."""
+    if "tqdm" in sys.modules:
+        from tqdm import tqdm
+
+        for bar in list(getattr(tqdm, "_instances", ())):
+            bar.close()
+
+
 def route_warnings() -> None:
     """Python warnings (numpy's RuntimeWarning included) as one-line messages."""
 

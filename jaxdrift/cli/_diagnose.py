@@ -77,7 +77,6 @@ def run_diagnose(args) -> int:
                   [args.run, args.model, args.sensors])
     kind = _kind(read_header(args.run), args.map)
     opts = c.run_options(args)
-    bar = c.progress(total=4, desc="diagnose", unit="step")
     if kind == "attitude":
         if args.model:
             raise UsageError(f"{args.run}: an attitude run (column wx) takes --sensors, not --model")
@@ -98,6 +97,7 @@ def run_diagnose(args) -> int:
             positions = read_sensors(args.sensors, run["acc"].shape[1])
         elif args.sensors is not None:
             raise UsageError(f"{args.sensors}: sensor positions given but {args.run} has no accelerometer columns")
+        bar = c.progress(total=4, desc="diagnose", unit="step")  # from here on: computing
         bar.update(1)
         model_desc = {"sensors": os.path.basename(args.sensors) if args.sensors else None}
         try:
@@ -121,7 +121,7 @@ def run_diagnose(args) -> int:
         if args.sensors:
             raise UsageError(f"{args.run}: a vehicle run (no column wx) takes --model, not --sensors")
         model = read_model(args.model) if args.model else dict(DEFAULT_MODEL)
-        run = load_run(args.run, "vehicle", model=model, **opts)
+        run = load_run(args.run, "vehicle", model=model if args.model else None, **opts)
         if not args.model:
             c.info(f"no --model given: using {DEFAULT_MODEL_LABEL}")
         for w in run.warnings:
@@ -130,6 +130,7 @@ def run_diagnose(args) -> int:
             c.detail(n)
         c.detail(f"read {run.n} samples at {run.info['rate_hz']:.6g} Hz ({run.info['format']}) in "
                  f"{time.monotonic() - t_start:.1f} s")
+        bar = c.progress(total=4, desc="diagnose", unit="step")  # from here on: computing
         bar.update(1)
         model_desc = ({"file": os.path.basename(args.model)} if args.model else {"default": DEFAULT_MODEL_LABEL})
         model_desc["parameters"] = model
