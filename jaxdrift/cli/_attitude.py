@@ -282,13 +282,13 @@ def run_quaternion_drift(args) -> int:
     if args.paths < 10:
         raise UsageError("--paths must be at least 10")
     summary = _run_into(args.out, lambda tmp: quaternion_drift_study(tmp, sigma=args.sigma, t1=args.t1, dt=args.dt,
-                                                                     n_paths=args.paths, seed=args.seed),
+                                                                     n_paths=args.paths, seed=args.seed, progress=True),
                         "quaternion-drift", "quaternion_summary.json", _options(args))
     print(json.dumps(summary, indent=1))
     return 0
 
 
-def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, seed=0):
+def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, seed=0, progress=False):
     import jax
     import numpy as np
     from scipy import stats
@@ -298,12 +298,17 @@ def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, see
 
     plt = _plt()
     res = {}
+    from ._common import progress as _bar
+
+    bar = _bar(total=6, desc="quaternion-drift", unit="case", enabled=progress)
     with jax.enable_x64(True):
         key = jax.random.key(seed)
         for scheme in ("euler_maruyama", "heun", "expmap"):
             for axes in ((0,), (0, 1, 2)):
                 ts, qs, W = quaternion_sde_paths(key, n_paths, t1, dt, sigma, scheme=scheme, axes=axes, n_save=41)
                 res[(scheme, len(axes))] = (np.asarray(ts), np.asarray(qs), np.asarray(W))
+                bar.update(1)
+    bar.close()
     ts = res[("expmap", 1)][0]
     fig, ax = plt.subplots(figsize=(6, 4))
     summary = {"sigma": sigma, "t1": t1, "dt": dt, "paths": n_paths, "norm_at_end": {}, "angle_error": {}}
@@ -361,13 +366,13 @@ def run_accel_array(args) -> int:
         raise UsageError("--paths must be at least 10")
     summary = _run_into(args.out, lambda tmp: accel_array_study(tmp, seed=args.seed, duration=args.duration,
                                                                 dt=1.0 / args.rate, noise=args.noise,
-                                                                n_paths=args.paths),
+                                                                n_paths=args.paths, progress=True),
                         "accel-array", "accel_summary.json", _options(args))
     print(json.dumps(summary, indent=1))
     return 0
 
 
-def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_paths=100):
+def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_paths=100, progress=False):
     import numpy as np
     from scipy import stats
 
@@ -414,9 +419,14 @@ def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_pat
     n2 = int(round(T2 / dt)) + 1
     checks = np.unique(np.geomspace(10, n2 - 1, 12).astype(int))
     errs = np.empty((n_paths, len(checks), 3))
+    from ._common import progress as _bar
+
+    bar = _bar(total=n_paths, desc="accel-array", unit="path", enabled=progress)
     for p in range(n_paths):
         out_p = reconstruct(rng.normal(size=(n2, r.shape[0], 3)) * noise, r, dt)
         errs[p] = quat_log_np(out_p["q"][checks])
+        bar.update(1)
+    bar.close()
     tt = checks * dt
     sd_cf = angle_error_std_closed_form(noise, r, dt, tt)
     sd_mc = np.sqrt(np.mean(errs**2, 0))
