@@ -101,8 +101,9 @@ def _watch(sock) -> None:
     except OSError:
         return
     signum = data[0] if data else signal.SIGINT
-    from ..io._outputs import COMMIT_LOCK, remove_pending
+    from ..io._outputs import COMMIT_LOCK, INTERRUPT, remove_pending
 
+    INTERRUPT.set()
     COMMIT_LOCK.acquire()  # never between two renames; held until the process ends
     remove_pending()
     what = "interrupted" if signum == signal.SIGINT else "terminated"
@@ -120,11 +121,21 @@ def install_interrupt_handler() -> None:
     The C-level signal handler writes to a socket; a thread wakes up on it, waits for any rename
     in progress (:data:`jaxdrift.io._outputs.COMMIT_LOCK`), removes temporary files and calls
     ``os._exit``: no Python exception unwinds through JAX/XLA threads (which is what crashed), and
-    the exit does not wait for a compilation the main thread may be inside."""
+    the exit does not wait for a compilation the main thread may be inside. The main thread, when
+    it next runs Python code, finishes a commit in progress and then waits (it never exits 0 after
+    an interrupt, and never stops between two renames)."""
     r, w = socket.socketpair()
     w.setblocking(False)
+    from ..io._outputs import INTERRUPT, in_commit, park
+
+    def main_thread_handler(*_):
+        # the thread acts; the main thread finishes a commit in progress, or else waits for it
+        INTERRUPT.set()
+        if not in_commit():
+            park()
+
     for s in _EXIT:
-        signal.signal(s, lambda *_: None)  # the thread acts; the main thread just goes on
+        signal.signal(s, main_thread_handler)
     signal.set_wakeup_fd(w.fileno(), warn_on_full_buffer=False)
     threading.Thread(target=_watch, args=(r,), name="jaxdrift-interrupt", daemon=True).start()
     install_interrupt_handler._keep = (r, w)  # keep the sockets alive

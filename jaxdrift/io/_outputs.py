@@ -29,13 +29,42 @@ import threading
 
 from ..errors import InputError
 
-__all__ = ["COMMIT_LOCK", "PENDING", "MANIFEST", "check_outputs", "atomic_path", "atomic_dir",
+__all__ = ["COMMIT_LOCK", "PENDING", "INTERRUPT", "MANIFEST", "in_commit", "park", "check_outputs", "atomic_path", "atomic_dir",
            "write_json", "write_text", "write_table", "sha256_file", "finite_json", "remove_pending"]
 
 #: held while temporary files are renamed into place
 COMMIT_LOCK = threading.RLock()
 #: temporary files and folders that exist right now (removed on interrupt)
 PENDING: set[str] = set()
+#: set by the interrupt handler as soon as a signal arrives
+INTERRUPT = threading.Event()
+_DEPTH = [0]  # commits in progress in the main thread
+
+
+def in_commit() -> bool:
+    return _DEPTH[0] > 0
+
+
+def park() -> None:
+    """Wait for the interrupt handler's thread to end the process (it exits with os._exit)."""
+    import time
+
+    while True:
+        time.sleep(1.0)
+
+
+@contextlib.contextmanager
+def _committing():
+    """The renames of one output: under COMMIT_LOCK; after them, an interrupt that arrived
+    meanwhile ends the process before anything else happens."""
+    with COMMIT_LOCK:
+        _DEPTH[0] += 1
+        try:
+            yield
+        finally:
+            _DEPTH[0] -= 1
+    if INTERRUPT.is_set():
+        park()
 MANIFEST = "jaxdrift-manifest.json"
 
 
@@ -139,7 +168,7 @@ def atomic_path(path, option: str = "output"):
     PENDING.add(tmp)
     try:
         yield tmp
-        with COMMIT_LOCK:
+        with _committing():
             _commit_hook(path)
             os.chmod(tmp, _umask_mode())  # mkstemp makes it private; a result is an ordinary file
             os.replace(tmp, path)
@@ -178,7 +207,7 @@ def atomic_dir(path, option: str = "--out"):
         names = sorted(n for n in os.listdir(tmp) if n != MANIFEST)
         manifest = {"files": {n: sha256_file(os.path.join(tmp, n)) for n in names if os.path.isfile(os.path.join(tmp, n))},
                     "written_utc": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")}
-        with COMMIT_LOCK:
+        with _committing():
             os.makedirs(path, exist_ok=True)
             with contextlib.suppress(FileNotFoundError):
                 os.unlink(os.path.join(path, MANIFEST))
