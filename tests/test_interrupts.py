@@ -49,9 +49,17 @@ def _close(proc, buf):
 
 
 def _interrupt(args, cwd, *, after_s=None, when=None, extra_env=None, timeout=240):
-    """Run, send SIGINT after ``after_s`` seconds or once ``when`` appears on stderr."""
-    proc, buf = _start(args, cwd, extra_env)
+    """Run, send SIGINT ``after_s`` seconds after the handler is installed (the process's first
+    Python code; before it, Python's own start-up is outside jaxdrift's reach), or once ``when``
+    appears on stderr."""
+    proc, buf = _start(args, cwd, {"JAXDRIFT_TEST_ANNOUNCE": "1", **(extra_env or {})})
     t0 = time.monotonic()
+    if after_s is not None:
+        while b"interrupt handler ready" not in buf["err"] and proc.poll() is None:
+            if time.monotonic() - t0 > timeout:
+                break
+            time.sleep(0.005)
+        t0 = time.monotonic()
     while True:
         if proc.poll() is not None:
             _close(proc, buf)
@@ -83,7 +91,7 @@ def _assert_clean_exit(rc, err):
     assert rc == 130, (rc, err[-3000:])  # a segfault is rc -11, an unhandled KeyboardInterrupt -2 or 1
     assert "Traceback" not in err and "Segmentation" not in err and "Fatal Python error" not in err, err[-3000:]
     last = [ln for ln in err.replace("\r", "\n").splitlines() if ln.strip()][-1]
-    assert last.startswith("jaxdrift ") and "interrupted" in last, last
+    assert last.startswith("jaxdrift") and "interrupted" in last, last
 
 
 def _no_leftovers(folder):
@@ -104,7 +112,7 @@ def run_csv(tmp_path_factory):
     return path
 
 
-@pytest.mark.parametrize("after_s", [0.2, 0.4, 0.6, 0.8, 1.0])
+@pytest.mark.parametrize("after_s", [0.0, 0.2, 0.4, 0.6, 0.8])
 def test_paper_interrupted_in_the_first_second(tmp_path, after_s):
     """Five tries in the first second (the issue: 4 of 5 segmentation faults)."""
     out = tmp_path / "out"
@@ -170,7 +178,7 @@ def test_every_command_every_moment(tmp_path, run_csv, cmd, moment, rep):
             "pointmass": ["pointmass", "--out", str(out), "--paths", "4000"],
             "quaternion-drift": ["quaternion-drift", "--out", str(out), "--paths", "2000"],
             "accel-array": ["accel-array", "--out", str(out), "--paths", "200"]}[cmd]
-    kw = {"first second": {"after_s": 0.2 + 0.2 * rep},
+    kw = {"first second": {"after_s": 0.2 * rep},
           "mid-run": {"after_s": 4.0 + rep},
           "writing": {"when": "jaxdrift: committing", "extra_env": {"JAXDRIFT_TEST_COMMIT_DELAY_S": "1.0"}}}[moment]
     rc, err = _interrupt(args, tmp_path, **kw)

@@ -139,3 +139,5 @@ def install_interrupt_handler() -> None:
     signal.set_wakeup_fd(w.fileno(), warn_on_full_buffer=False)
     threading.Thread(target=_watch, args=(r,), name="jaxdrift-interrupt", daemon=True).start()
     install_interrupt_handler._keep = (r, w)  # keep the sockets alive
+    if os.environ.get("JAXDRIFT_TEST_ANNOUNCE"):  # tests of Ctrl-C in the first second
+        os.write(2, b"jaxdrift: interrupt handler ready\n")
