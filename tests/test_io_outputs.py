@@ -147,6 +147,8 @@ def test_report_provenance_and_series(tmp_path, capsys, run_csv):
     assert prov["inputs"][0]["file"] == "run.csv" and prov["inputs"][0]["sha256"] == _sha(run_csv)
     assert datetime.datetime.fromisoformat(prov["time_utc"]) >= t0
     assert "seed's table" in prov["model"]["default"] and prov["options"]["series"] == str(series)
+    assert prov["reading"]["format"] == "csv" and prov["reading"]["columns"]["f1"] == "f1"
+    assert prov["reading"]["rate_hz"] == pytest.approx(200.0) and prov["reading"]["forced"] is False
     assert set(rep) >= {"schema", "kind", "simulation_error", "findings", "extended_model", "gain", "run"}
     import pyarrow.parquet as pq
 

@@ -89,7 +89,8 @@ def run_diagnose(args) -> int:
         for w in run["warnings"]:
             c.warn(w)
         for n in run["info"]["notes"]:
-            c.detail(n)
+            c.info(n)
+        reading = run["info"]
         positions = None
         if run["acc"] is not None:
             if args.sensors is None:
@@ -127,7 +128,8 @@ def run_diagnose(args) -> int:
         for w in run.warnings:
             c.warn(w)
         for n in run.info["notes"]:
-            c.detail(n)
+            c.info(n)
+        reading = run.info
         c.detail(f"read {run.n} samples at {run.info['rate_hz']:.6g} Hz ({run.info['format']}) in "
                  f"{time.monotonic() - t_start:.1f} s")
         bar = c.progress(total=4, desc="diagnose", unit="step")  # from here on: computing
@@ -167,6 +169,7 @@ def run_diagnose(args) -> int:
     report["provenance"] = provenance(
         "diagnose", [args.run, args.model, args.sensors], model=model_desc,
         options={"kind": kind, **opts, "plots": args.plots, "series": args.series})
+    report["provenance"]["reading"] = {k: v for k, v in reading.items() if k != "quantum"}
     write_json(args.json, report, "--json")
     bar.update(bar.total - bar.n)
     bar.close()
