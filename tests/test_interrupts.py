@@ -48,7 +48,7 @@ def _close(proc, buf):
     proc.stderr.close()
 
 
-def _interrupt(args, cwd, *, after_s=None, when=None, extra_env=None, timeout=240):
+def _interrupt(args, cwd, *, after_s=None, when=None, extra_env=None, timeout=240, sig=signal.SIGINT):
     """Run, send SIGINT ``after_s`` seconds after the handler is installed (the process's first
     Python code; before it, Python's own start-up is outside jaxdrift's reach), or once ``when``
     appears on stderr."""
@@ -74,7 +74,7 @@ def _interrupt(args, cwd, *, after_s=None, when=None, extra_env=None, timeout=24
             _close(proc, buf)
             pytest.fail(f"never reached {when!r}: {buf['err'][-2000:]!r}")
         time.sleep(0.02)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(sig)
     try:
         rc = proc.wait(timeout=60)
     except subprocess.TimeoutExpired:
@@ -154,6 +154,16 @@ def test_diagnose_interrupted_while_writing(tmp_path, run_csv):
         with open(plots / name, "rb") as fh:
             assert hashlib.sha256(fh.read()).hexdigest() == digest
     assert not report.exists()
+    _no_leftovers(tmp_path)
+
+
+def test_diagnose_terminated_mid_run(tmp_path, run_csv):
+    """SIGTERM (a job scheduler ending the run) the same way, with exit code 143."""
+    report, series = tmp_path / "r.json", tmp_path / "s.csv"
+    rc, err = _interrupt(["diagnose", str(run_csv), "--json", str(report), "--series", str(series)], tmp_path,
+                         when="1/4", sig=signal.SIGTERM)
+    assert rc == 143 and "terminated" in err.splitlines()[-1] and "Traceback" not in err
+    assert not report.exists() and not series.exists()
     _no_leftovers(tmp_path)
 
 
