@@ -35,7 +35,13 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     """Read and validate an attitude run (CSV, Parquet or MF4) through the one reader
     (:func:`jaxdrift.io.load_run`, the same rules and messages as vehicle runs), plus what only
     attitude runs have: a reference quaternion given per row (all four cells or none) of norm
-    close to 1. Returns the dict the diagnosis takes; raises UsageError on bad input."""
+    close to 1. Raises UsageError on bad input.
+
+    Returns a dict: ``path``, ``t`` (n,), ``dt``, ``w`` (n, 3), ``q_ref`` (n, 4, NaN rows where no
+    reference; None without), ``acc`` (n, N, 3) or None, ``extra_columns``, ``quantisation`` and
+    ``acc_quantisation`` (RMS rounding error of the rate and accelerometer cells as written,
+    sampled from both ends of a CSV file), ``warnings``, ``info`` (how the run was read).
+    """
     try:
         run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks)
     except InputError as e:
@@ -68,11 +74,20 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     used = set(run.info["columns"].values())
     header = read_header_any(path)
     extra = [c for c in header if c not in used]
-    # the printed resolution of the rate columns (to tell noise from rounding): uniform rounding
-    # to a step q has the standard deviation q / sqrt(12)
-    q = max(run.info["quantum"].get(c, 0.0) for c in CHANNELS)
+    # the rounding of the rate (and accelerometer) columns as written, to tell noise from
+    # rounding: the RMS rounding error sqrt(mean(step^2) / 12) of the cells' last digits
+    acc_cols = [c for c in ch if c.startswith("a") and c[1:-1].isdigit()]
     return {"path": path, "t": run.t, "dt": run.dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra,
-            "quantisation": float(q / math.sqrt(12.0)), "warnings": run.warnings, "info": run.info}
+            "quantisation": _rounding_rms(run.info, CHANNELS), "acc_quantisation": _rounding_rms(run.info, acc_cols),
+            "warnings": run.warnings, "info": run.info}
+
+
+def _rounding_rms(info, columns) -> float:
+    """RMS rounding error of the sampled cells of ``columns`` (0 for binary formats: exact)."""
+    steps = [info.get("printed_steps", {}).get(c) for c in columns]
+    sq = sum(s[0] for s in steps if s)
+    n = sum(s[1] for s in steps if s)
+    return float(math.sqrt(sq / n / 12.0)) if n else 0.0
 
 
 def _where(run):

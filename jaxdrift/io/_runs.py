@@ -283,6 +283,8 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     info = {"format": cols.fmt, "kind": kind, "columns": {c: file_of[c] for c in used},
             "units_converted": converted, "rate_hz": 1.0 / float((t[-1] - t[0]) / (len(t) - 1)),
             "notes": notes, "forced": bool(problems),
-            "quantum": {c: cols.quantum.get(file_of[c], 0.0) * converted.get(c, 1.0) for c in used}}
+            "quantum": {c: cols.quantum.get(file_of[c], 0.0) * converted.get(c, 1.0) for c in used},
+            "printed_steps": {c: (cols.steps[file_of[c]][0] * converted.get(c, 1.0) ** 2, cols.steps[file_of[c]][1])
+                              for c in used if file_of[c] in cols.steps}}
     cls = AttitudeRun if kind == "attitude" else VehicleRun
     return cls(path=str(path), t=t, channels=data, warnings=tuple(warnings), info=info)

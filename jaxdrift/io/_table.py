@@ -50,6 +50,7 @@ class Columns:
     notes: list[str]
     rate_hz: float | None = None  # MDF4: the common rate the channels were resampled to
     units: dict[str, str] = dataclasses.field(default_factory=dict)  # MDF4: units stored per channel
+    steps: dict[str, tuple] = dataclasses.field(default_factory=dict)  # CSV: (sum of step^2, cells) sampled
 
     @property
     def n(self) -> int:
@@ -143,23 +144,26 @@ def _first_ragged_line(path, delim, ncol) -> tuple[int, int]:
 
 def _printed_digits(cell: str, decimal: str) -> tuple[int, int]:
     """(significant digits, decimal exponent of the last digit) of a printed number:
-    ``0.000976562`` -> (6, -9), ``1.5e-3`` -> (2, -4), ``3`` -> (1, 0)."""
+    ``0.000976562`` -> (6, -9), ``1.5e-3`` -> (2, -4), ``3`` -> (1, 0), ``0.00`` -> (0, -2);
+    (-1, 0) for text that is no plain number."""
     s = cell.strip().lower().replace(decimal, ".").lstrip("+-")
     mant, _, exp = s.partition("e")
     try:
         e = int(exp) if exp else 0
     except ValueError:
-        return 0, 0
+        return -1, 0
     whole, _, frac = mant.partition(".")
     if not (whole + frac).isdigit():
-        return 0, 0
+        return -1, 0
     sig = len((whole + frac).lstrip("0"))
     return sig, e - len(frac)
 
 
-def _text_quanta(path, names, delim, decimal, cols) -> dict[str, tuple[int, int]]:
+def _text_quanta(path, names, delim, decimal, cols) -> dict[str, tuple[int, int, float, int]]:
     """Per column, the most significant digits and the finest last digit printed, from the text
-    at both ends of the file (cells that are exact with fewer digits do not count against it)."""
+    at both ends of the file (cells that are exact with fewer digits do not count against it),
+    and the sum of squares and count of the cells' last-digit steps (their RMS rounding error is
+    ``sqrt(sum / count / 12)``)."""
     size = os.path.getsize(path)
     with open(path, "rb") as fh:
         blocks = [fh.read(_QUANTUM_BYTES)]
@@ -167,7 +171,7 @@ def _text_quanta(path, names, delim, decimal, cols) -> dict[str, tuple[int, int]
             fh.seek(size - _QUANTUM_BYTES)
             blocks.append(fh.read())
     idx = {c: names.index(c) for c in cols}
-    out = {c: (0, 0) for c in cols}
+    out = {c: (0, 0, 0.0, 0) for c in cols}
     for bi, b in enumerate(blocks):
         lines = b.decode("utf-8-sig", errors="replace").splitlines()
         lines = lines[1:-1] if (bi > 0 or size > _QUANTUM_BYTES) else lines[1:]
@@ -176,16 +180,17 @@ def _text_quanta(path, names, delim, decimal, cols) -> dict[str, tuple[int, int]
                 continue
             for c, j in idx.items():
                 sig, last = _printed_digits(row[j], decimal)
-                s0, l0 = out[c]
-                out[c] = (max(s0, sig), min(l0, last))
+                s0, l0, sq, k = out[c]
+                if sig >= 0:  # a number (0.0000 too: its last digit is a rounding step)
+                    out[c] = (max(s0, sig), min(l0, last), sq + 10.0 ** min(2 * last, 300), k + 1)
     return out
 
 
 def _quantum(v: np.ndarray, digits: tuple[int, int]) -> float:
     """Printed resolution of a column: the larger of the finest decimal printed and one unit in
     the last significant digit at the largest magnitude (for numbers printed to S digits)."""
-    sig, last = digits
-    if sig == 0:
+    sig, last = digits[:2]
+    if sig <= 0:
         return 0.0
     fin = v[np.isfinite(v)]
     vmax = float(np.max(np.abs(fin))) if fin.size else 0.0
@@ -261,10 +266,11 @@ def _read_csv(path, want: list[str]) -> Columns:
         raise InputError(f"{fname}: no data rows after the header")
     digits = _text_quanta(path, names, delim, decimal, want)
     quanta = {c: _quantum(data[c], digits[c]) for c in want}
+    steps = {c: digits[c][2:] for c in want}
     notes = []
     if delim != ",":
         notes.append(f"{fname}: columns separated by {delim!r}" + (", decimal comma" if decimal == "," else ""))
-    return Columns(str(path), "csv", names, data, empty, 2, quanta, notes)
+    return Columns(str(path), "csv", names, data, empty, 2, quanta, notes, steps=steps)
 
 
 # ----------------------------------------------------------------------------------- Parquet
