@@ -265,3 +265,22 @@ def test_attitude_runs_follow_the_same_rules(tmp_path):
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match=r"missing required column 'wz'; did you mean 'wzz'"):
         load_run(path, "attitude")
+
+
+def test_attitude_rounding_of_the_written_digits(tmp_path):
+    """quantisation (rates) and acc_quantisation: RMS rounding error step / sqrt(12) of the cells as
+    written; zero cells ("0.0000") count, binary formats are exact."""
+    rng = np.random.default_rng(2)
+    n = 300
+    path = tmp_path / "att.csv"
+    acc_cols = [f"a{k}{a}" for k in range(1, 5) for a in "xyz"]
+    with open(path, "w") as fh:
+        fh.write("t,wx,wy,wz," + ",".join(acc_cols) + "\n")
+        for i in range(n):
+            w = [0.0 if i % 7 == 0 else v for v in rng.normal(0, 0.01, 3)]
+            a = rng.normal(0, 1.0, len(acc_cols))
+            fh.write(f"{i / 100:.2f}," + ",".join(f"{v:.4f}" for v in w) + "," + ",".join(f"{v:.2f}" for v in a) + "\n")
+    run = read_attitude_run(str(path))
+    assert run["quantisation"] == pytest.approx(1e-4 / np.sqrt(12), rel=1e-12)
+    assert run["acc_quantisation"] == pytest.approx(1e-2 / np.sqrt(12), rel=1e-12)
+    assert run["acc"].shape == (n, 4, 3)
