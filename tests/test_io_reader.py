@@ -14,7 +14,7 @@ import pytest
 
 from jaxdrift import cli
 from jaxdrift.errors import InputError
-from jaxdrift.io import load_run, read_vehicle_run, write_vehicle_run
+from jaxdrift.io import load_run, read_vehicle_run
 from jaxdrift.io._attitude_files import read_attitude_run
 
 

@@ -83,7 +83,7 @@ def _known(kind: str, name: str) -> bool:
     return name in req or name in opt or (kind == "attitude" and bool(_ACC.match(name)))
 
 
-def _check_names(fname, header, kind, force) -> tuple[list[str], list[str]]:
+def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
     """Check the (mapped) header. Returns (warnings, close-name problems)."""
     req, opt = KINDS[kind]
     for i, h in enumerate(header):
@@ -232,7 +232,7 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     synth_t = "t" not in canon and (fs is not None or fmt_mf4)
     if synth_t:
         canon = ["t"] + canon
-    warnings, close = _check_names(fname, canon, kind, force)
+    warnings, close = _check_names(fname, canon, kind)
     warnings += [f"{fname}: column {h!r} is not used (--map reads {to_contract.get(h, mapping[h])!r} from "
                  f"{mapping[h]!r})" for h in shadowed]
     used = [c for c in canon if c in req or c in opt]
