@@ -284,3 +284,32 @@ def test_attitude_rounding_of_the_written_digits(tmp_path):
     assert run["quantisation"] == pytest.approx(1e-4 / np.sqrt(12), rel=1e-12)
     assert run["acc_quantisation"] == pytest.approx(1e-2 / np.sqrt(12), rel=1e-12)
     assert run["acc"].shape == (n, 4, 3)
+
+
+def test_cli_reading_options_reach_the_reader(tmp_path, capsys, real_cols, monkeypatch):
+    """--map/--units (CSV) and an MF4 file through `jaxdrift diagnose`: the diagnosis gets the SI
+    run, the notes are shown, provenance.reading says how it was read."""
+    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+
+    seen = []
+
+    def fake(run, model, plots, log=None):
+        seen.append(run)
+        return {"kind": "vehicle"}
+
+    monkeypatch.setattr(dv, "diagnose_vehicle_run", fake)
+    logger = _csv(tmp_path / "logger.csv", {**real_cols, "f1": real_cols["f1"] / 1e3},
+                  names=["time_s", "Fz_FL", "Fz_RL", "pitch", "heave"])
+    rc, err, report = _cli(tmp_path, capsys, logger, "--map", "t=time_s,f1=Fz_FL,f2=Fz_RL,beta=pitch,z3=heave",
+                           "--units", "f1=kN")
+    assert rc == 0, err
+    np.testing.assert_allclose(seen[-1]["f1"], real_cols["f1"], rtol=1e-12)
+    reading = json.loads(report.read_text())["provenance"]["reading"]
+    assert reading["columns"]["f1"] == "Fz_FL" and reading["units_converted"] == {"f1": 1000.0}
+    mf4 = tmp_path / "log.mf4"
+    _write_mf4(mf4, real_cols)
+    rc, err, report = _cli(tmp_path, capsys, mf4, "--map", "f1=Fz_FL,f2=Fz_RL,beta=Pitch")
+    assert rc == 0, err
+    assert "resampled (linear) to a common time base of 200 Hz" in err
+    assert json.loads(report.read_text())["provenance"]["reading"]["format"] == "mf4"
+    np.testing.assert_allclose(seen[-1]["f2"], real_cols["f2"][:seen[-1].n], rtol=1e-12)
