@@ -101,14 +101,11 @@ def _no_leftovers(folder):
 
 @pytest.fixture(scope="module")
 def run_csv(tmp_path_factory):
-    from jaxdrift.io import write_vehicle_run
-    from jaxdrift.studies import _rungen as rg
+    """A copy of the committed example run (10 s at 200 Hz, pitch and heave, hidden effects)."""
+    import shutil
 
-    cols, _ = rg.make_run([{"cause": "force_offset", "channel": "f2", "value": 60.0},
-                           {"cause": "force_noise", "value": 20.0}],
-                          duration=6.0, fs=200.0, speed=15.0, road_class="B", seed=2, channels=("beta", "z3"))
-    path = tmp_path_factory.mktemp("run") / "run.csv"
-    write_vehicle_run(path, cols["t"], {k: v for k, v in cols.items() if k != "t"})
+    path = tmp_path_factory.mktemp("run") / "vehicle_run.csv"
+    shutil.copyfile(Path(__file__).resolve().parents[1] / "examples" / "vehicle_run.csv", path)
     return path
 
 
@@ -122,6 +119,7 @@ def test_paper_interrupted_in_the_first_second(tmp_path, after_s):
     _no_leftovers(tmp_path)
 
 
+@pytest.mark.slow
 def test_paper_interrupted_mid_run(tmp_path):
     out = tmp_path / "out"
     rc, err = _interrupt(["paper", "--quick", "--out", str(out)], tmp_path, when="path/s")
@@ -167,6 +165,7 @@ def test_diagnose_terminated_mid_run(tmp_path, run_csv):
     _no_leftovers(tmp_path)
 
 
+@pytest.mark.slow
 def test_ins_interrupted_mid_run(tmp_path):
     out = tmp_path / "ins"
     rc, err = _interrupt(["ins", "--out", str(out), "--duration", "20", "--paths", "50"], tmp_path, when="path/s")

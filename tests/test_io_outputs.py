@@ -10,13 +10,15 @@ import json
 import os
 import warnings
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
 import jaxdrift
 from jaxdrift import cli
 from jaxdrift.errors import InputError
-from jaxdrift.io import atomic_dir, atomic_path, check_outputs, write_json, write_vehicle_run
+from jaxdrift.io import atomic_dir, atomic_path, check_outputs, write_json
 from jaxdrift.io._outputs import MANIFEST
 
 UNWRITABLE = "/sys"  # refuses new files even to root
@@ -29,14 +31,11 @@ def _sha(p):
 
 @pytest.fixture(scope="module")
 def run_csv(tmp_path_factory):
-    """A real run with a hidden offset on f2: 6 s at 200 Hz, pitch and heave."""
-    from jaxdrift.studies import _rungen as rg
+    """A copy of the committed example run (10 s at 200 Hz, pitch and heave, hidden effects)."""
+    import shutil
 
-    cols, _ = rg.make_run([{"cause": "force_offset", "channel": "f2", "value": 60.0},
-                           {"cause": "force_noise", "value": 20.0}],
-                          duration=6.0, fs=200.0, speed=15.0, road_class="B", seed=2, channels=("beta", "z3"))
-    path = tmp_path_factory.mktemp("run") / "run.csv"
-    write_vehicle_run(path, cols["t"], {k: v for k, v in cols.items() if k != "t"})
+    path = tmp_path_factory.mktemp("run") / "vehicle_run.csv"
+    shutil.copyfile(Path(__file__).resolve().parents[1] / "examples" / "vehicle_run.csv", path)
     return path
 
 
@@ -133,7 +132,7 @@ def test_oserror_while_writing_is_exit_2_with_the_path(tmp_path, capsys, run_csv
     assert os.listdir(tmp_path) == ["r.json"]  # no temporary file left
 
 
-def test_report_provenance_and_series(tmp_path, capsys, run_csv):
+def test_report_provenance_and_series(tmp_path, capsys, run_csv, monkeypatch):
     """The real diagnosis: provenance says what made the report; --series holds the signals, and
     its simulated pitch reproduces the report's pitch error (an independent simulation)."""
     report, series = tmp_path / "r.json", tmp_path / "s.parquet"
@@ -144,7 +143,7 @@ def test_report_provenance_and_series(tmp_path, capsys, run_csv):
     rep = json.loads(report.read_text())
     prov = rep["provenance"]
     assert prov["jaxdrift_version"] == jaxdrift.__version__
-    assert prov["inputs"][0]["file"] == "run.csv" and prov["inputs"][0]["sha256"] == _sha(run_csv)
+    assert prov["inputs"][0]["file"] == "vehicle_run.csv" and prov["inputs"][0]["sha256"] == _sha(run_csv)
     assert datetime.datetime.fromisoformat(prov["time_utc"]) >= t0
     assert "seed's table" in prov["model"]["default"] and prov["options"]["series"] == str(series)
     assert prov["reading"]["format"] == "csv" and prov["reading"]["columns"]["f1"] == "f1"
@@ -163,7 +162,11 @@ def test_report_provenance_and_series(tmp_path, capsys, run_csv):
         assert err_rms == pytest.approx(entry["rms"], rel=1e-3), key
     offset = rep["extended_model"]["corrections"]["f2"]["offset"]
     np.testing.assert_allclose(np.asarray(s["f2_corrected"]), data[:, 2] - offset, rtol=1e-12, atol=1e-9)
-    # CSV too, same columns
+    # CSV too, same columns (the diagnosis itself is not repeated: its report is replayed)
+    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+
+    replay = {k: v for k, v in rep.items() if k != "provenance"}
+    monkeypatch.setattr(dv, "diagnose_vehicle_run", lambda run, model, plots, log=None: dict(replay))
     csv_out = tmp_path / "s.csv"
     assert cli.main(["-q", "diagnose", str(run_csv), "--json", str(tmp_path / "r2.json"), "--series",
                      str(csv_out)]) == 0
@@ -198,13 +201,14 @@ def test_paper_refuses_to_overwrite_its_params(tmp_path, capsys):
 
 
 def test_small_commands_write_provenance_and_manifest(tmp_path, capsys):
-    out = tmp_path / "q"
-    assert cli.main(["quaternion-drift", "--out", str(out), "--paths", "20", "--t1", "0.16", "--dt", "0.004"]) == 0
+    out = tmp_path / "aa"
+    assert cli.main(["accel-array", "--out", str(out), "--duration", "6", "--paths", "10"]) == 0
     capsys.readouterr()
-    s = json.loads((out / "quaternion_summary.json").read_text())
-    assert s["provenance"]["command"] == "quaternion-drift" and s["provenance"]["options"]["paths"] == 20
+    s = json.loads((out / "accel_summary.json").read_text())
+    assert s["provenance"]["command"] == "accel-array" and s["provenance"]["options"]["paths"] == 10
     man = json.loads((out / MANIFEST).read_text())
-    assert set(man["files"]) == {"quaternion_norm.png", "quaternion_angle_error.png", "quaternion_summary.json"}
+    assert set(man["files"]) == {"accel_reconstruction.png", "accel_noise_growth.png", "accel_highpass.png",
+                                 "accel_summary.json"}
     for name, digest in man["files"].items():
         assert _sha(out / name) == digest
 
@@ -279,7 +283,7 @@ def test_quiet_and_verbose(tmp_path, capsys, run_csv, monkeypatch):
     monkeypatch.setattr(dv, "diagnose_vehicle_run", fake)
     assert cli.main(["-v", "diagnose", str(run_csv), "--json", str(tmp_path / "v.json")]) == 0
     err = capsys.readouterr().err
-    assert "read 1201 samples at 200 Hz (csv)" in err and "step 1: best force_offset[f2]" in err
+    assert "read 2001 samples at 200 Hz (csv)" in err and "step 1: best force_offset[f2]" in err
     assert "default model" in err and "report written" in err
     assert cli.main(["-q", "diagnose", str(run_csv), "--json", str(tmp_path / "q.json")]) == 0
     assert capsys.readouterr().err == ""
