@@ -12,7 +12,6 @@ import numpy as np
 os.environ["MPLBACKEND"] = "Agg"
 import jax; jax.config.update("jax_enable_x64", True)
 from jaxdrift import cli
-from jaxdrift.io import write_vehicle_run
 from jaxdrift.studies import _rungen as rg
 
 D = tempfile.mkdtemp(prefix="jaxdrift-bad-inputs-")
