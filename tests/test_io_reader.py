@@ -238,6 +238,7 @@ def test_mf4_channels_resampled_to_a_stated_rate(tmp_path, real_cols):
     assert np.max(np.abs(r["beta"] - real_cols["beta"][:n])) < 0.05 * np.ptp(real_cols["beta"])
     r2 = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch", fs=100.0)
     assert r2.info["rate_hz"] == pytest.approx(100.0)
+    assert any("Fz_FL, Fz_RL decimated" in n and "without an anti-alias filter" in n for n in r2.info["notes"])
 
 
 def test_mf4_without_the_extra_says_how_to_install(tmp_path, real_cols, monkeypatch):

@@ -373,6 +373,10 @@ def _read_mf4(path, want: list[str], fs: float | None, time_col: str | None) -> 
     src = ", ".join(f"{c} {rates[c]:.6g} Hz" for c in sigs)
     notes = [f"{fname}: channels resampled (linear) to a common time base of {rate:.6g} Hz "
              f"over {t0:.6g} .. {t[-1]:.6g} s ({src})" + ("" if not uniform else "; rates already equal")]
+    faster = [c for c in sigs if rates[c] > rate * (1 + 1e-6)]
+    if faster:
+        notes.append(f"{fname}: {', '.join(faster)} decimated from a higher rate by linear interpolation, "
+                     f"without an anti-alias filter: content above {rate / 2:.6g} Hz folds back")
     units = {c: u for c, (_, _, u) in sigs.items()}
     if time_col:
         data[time_col] = t
