@@ -107,6 +107,8 @@ _EXPORTS.update({
     "read_model": ("io._csvio", "read_model"),
     "read_vehicle_run": ("io._csvio", "read_vehicle_run"),
     "write_vehicle_run": ("io._csvio", "write_vehicle_run"),
+    "load_run": ("io._runs", "load_run"),
+    "AttitudeRun": ("io._runs", "AttitudeRun"),
     "diagnose_vehicle_run": ("diagnosis.vehicle._diagnose", "diagnose_vehicle_run"),
 })
 
@@ -231,6 +233,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .io._csvio import read_model
     from .io._csvio import read_vehicle_run
     from .io._csvio import write_vehicle_run
+    from .io._runs import AttitudeRun, load_run
     from .diagnosis.vehicle._diagnose import diagnose_vehicle_run
     from .models._accel_array import check_positions
     from .models._accel_array import consistency_residual

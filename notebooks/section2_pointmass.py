@@ -43,11 +43,12 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import jaxdrift
+from jaxdrift.studies._notebook import notebook_output_dir
 from jaxdrift.studies._pointmass import chi2_interval, plot_pointmass, run_pointmass_study
 
 SMALL = os.environ.get("JAXDRIFT_NOTEBOOK_SMALL", "") not in ("", "0")
-OUT = os.environ.get("JAXDRIFT_NOTEBOOK_OUT", "paper-out")
-os.makedirs(OUT, exist_ok=True)
+# outputs go to $JAXDRIFT_NOTEBOOK_OUT, by default build/notebooks/ in the repository
+OUT = notebook_output_dir()
 
 n_paths = 200 if SMALL else 2000
 duration = 5.0 if SMALL else 100.0

@@ -40,10 +40,11 @@ import matplotlib.pyplot as plt
 import numpy as np
 
 import jaxdrift
+from jaxdrift.studies._notebook import notebook_output_dir
 
 SMALL = os.environ.get("JAXDRIFT_NOTEBOOK_SMALL", "") not in ("", "0")
-OUT = os.environ.get("JAXDRIFT_NOTEBOOK_OUT", "paper-out")
-os.makedirs(OUT, exist_ok=True)
+# outputs go to $JAXDRIFT_NOTEBOOK_OUT, by default build/notebooks/ in the repository
+OUT = notebook_output_dir()
 
 params = jaxdrift.HalfCarParams()  # the seed's table; e.g. HalfCarParams(m3=800.0) for your own
 print(params.to_dict())

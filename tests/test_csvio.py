@@ -77,13 +77,27 @@ def test_good_run_reads(good_run):
 def test_extra_column_is_a_warning(tmp_path):
     cols = _good_columns()
     cols["temperature"] = np.full(400, 21.0)
-    cols["Beta_rate"] = np.zeros(400)
     path = tmp_path / "run.csv"
     _write_csv(path, cols)
     run = read_vehicle_run(path)
     assert "temperature" not in run.channels
     assert any("temperature" in w for w in run.warnings)
-    assert any("Beta_rate" in w and "beta_rate" in w for w in run.warnings)  # a hint
+
+
+@pytest.mark.parametrize("name,hint", [("Beta_rate", "beta_rate"), ("bta", "beta")])
+def test_column_close_to_a_known_name_is_an_error(tmp_path, capsys, name, hint):
+    """A typo in an optional column must not silently drop it (issue #14): exit 2 with a hint;
+    --force makes it a warning and the column is ignored."""
+    cols = _good_columns()
+    cols[name] = cols.pop("beta")
+    path = tmp_path / "run.csv"
+    _write_csv(path, cols)
+    with pytest.raises(InputError, match=f"did you mean `{hint}`"):
+        read_vehicle_run(path)
+    rc, err, report = _run_cli(tmp_path, capsys, path)
+    _assert_refused(rc, err, report, "run.csv", "line 1", repr(name), f"did you mean `{hint}`?")
+    run = read_vehicle_run(path, force=True)
+    assert "beta" not in run.channels and any(hint in w and "--force" in w for w in run.warnings)
 
 
 @pytest.mark.parametrize("drop,needle", [("f2", "missing required column 'f2'"),

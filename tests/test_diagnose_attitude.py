@@ -181,7 +181,7 @@ def test_refuses_non_uniform_time(good_run, tmp_path):
         return lines
 
     _rewrite(p, fn)
-    _refused(p, good_run["paths"]["sensors"], tmp_path, os.path.basename(p), "row 3", "column t", "non-uniform")
+    _refused(p, good_run["paths"]["sensors"], tmp_path, os.path.basename(p), "line 31", "column t", "non-uniform")
 
 
 def test_refuses_nan_row(good_run, tmp_path):
@@ -194,7 +194,7 @@ def test_refuses_nan_row(good_run, tmp_path):
         return lines
 
     _rewrite(p, fn)
-    _refused(p, good_run["paths"]["sensors"], tmp_path, "row 13", "column wy")
+    _refused(p, good_run["paths"]["sensors"], tmp_path, "line 13", "column wy")
 
 
 def test_refuses_quaternion_far_from_unit(good_run, tmp_path):
@@ -209,7 +209,7 @@ def test_refuses_quaternion_far_from_unit(good_run, tmp_path):
         return lines
 
     _rewrite(p, fn)
-    _refused(p, good_run["paths"]["sensors"], tmp_path, "row 8", "norm")
+    _refused(p, good_run["paths"]["sensors"], tmp_path, "line 8", "norm")
 
 
 @pytest.mark.parametrize(
@@ -237,7 +237,7 @@ def test_refuses_missing_column_and_missing_sensors(tmp_path, good_run):
     p = good_run["paths"]["run"]
     _refused(p, None, tmp_path, "--sensors")
     _rewrite(p, lambda lines: [",".join(c for c in ln.split(",")[:3]) for ln in lines])
-    _refused(p, None, tmp_path, "column wz")
+    _refused(p, None, tmp_path, "column 'wz'")
 
 
 # ----------------------------------------------------------------------------- through the CLI

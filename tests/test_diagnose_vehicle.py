@@ -13,7 +13,6 @@ from __future__ import annotations
 import json
 import math
 import sys
-import types
 
 import numpy as np
 import pytest
@@ -230,39 +229,45 @@ def test_cli_end_to_end_with_figures(tmp_path):
     # the offset drives the force-driven pitch off; the corrected forces keep it much closer
     be = rep["gain"]["beta_error"]
     assert be["after"]["max_abs"] < 0.5 * be["before"]["max_abs"]
-    assert sorted(p.name for p in plots.iterdir()) == ["enforced_moment.png", "motion.png",
-                                                       "residual_envelope.png"]
+    assert sorted(p.name for p in plots.iterdir()) == ["enforced_moment.png", "jaxdrift-manifest.json",
+                                                       "motion.png", "residual_envelope.png"]
 
 
 def test_cli_dispatches_attitude_runs(tmp_path, monkeypatch, capsys):
+    """A header with wx goes to the attitude diagnosis (read through the same reader first)."""
     run = tmp_path / "att.csv"
-    run.write_text("t,wx,wy,wz\n0,0,0,0\n0.01,0,0,0\n")
+    rng = np.random.default_rng(0)
+    rows = "\n".join(f"{0.01 * i:.2f},{w[0]:.17g},{w[1]:.17g},{w[2]:.17g}" for i, w in enumerate(rng.normal(0, 1e-3, (40, 3))))
+    run.write_text("t,wx,wy,wz\n" + rows + "\n")
     report = tmp_path / "r.json"
     calls = []
-    fake = types.ModuleType("jaxdrift.diagnosis.attitude._diagnose")
+    from jaxdrift.diagnosis.attitude import _pipeline
 
-    def run_attitude_diagnosis(run_path, sensors_path, plots_dir):
-        calls.append((run_path, sensors_path, plots_dir))
-        return {"schema": "jaxdrift.diagnosis/1", "kind": "attitude", "findings": [{"cause": "none"}]}
+    def fake(run_dict, positions):
+        calls.append((run_dict["path"], run_dict["w"].shape, positions))
+        return {"schema": "jaxdrift.diagnosis/1", "kind": "attitude", "findings": [{"cause": "none"}]}, {}
 
-    fake.run_attitude_diagnosis = run_attitude_diagnosis
-    monkeypatch.setitem(sys.modules, "jaxdrift.diagnosis.attitude._diagnose", fake)
-    rc = cli.main(["diagnose", str(run), "--sensors", "s.json", "--json", str(report)])
-    assert rc == 0 and calls == [(str(run), "s.json", None)]
-    assert json.loads(report.read_text())["kind"] == "attitude"
+    monkeypatch.setattr(_pipeline, "diagnose_attitude", fake)
+    rc = cli.main(["diagnose", str(run), "--json", str(report)])
+    assert rc == 0 and calls == [(str(run), (40, 3), None)]
+    rep = json.loads(report.read_text())
+    assert rep["kind"] == "attitude" and rep["provenance"]["options"]["kind"] == "attitude"
 
-    def refuse(run_path, sensors_path, plots_dir):
+    def refuse(run_dict, positions):
         raise cli.UsageError("att.csv, line 3, column wx: NaN")
 
-    fake.run_attitude_diagnosis = refuse
+    monkeypatch.setattr(_pipeline, "diagnose_attitude", refuse)
     report2 = tmp_path / "r2.json"
     rc = cli.main(["diagnose", str(run), "--json", str(report2)])
     assert rc == 2 and not report2.exists() and "line 3, column wx" in capsys.readouterr().err
 
-    monkeypatch.setitem(sys.modules, "jaxdrift.diagnosis.attitude._diagnose", None)  # import fails
+    def crash(run_dict, positions):
+        raise RuntimeError("boom")
+
+    monkeypatch.setattr(_pipeline, "diagnose_attitude", crash)
     rc = cli.main(["diagnose", str(run), "--json", str(report2)])
     assert rc == 1 and not report2.exists()
-    assert "attitude diagnosis is not available" in capsys.readouterr().err
+    assert "internal error" in capsys.readouterr().err
 
 
 # ---------------------------------------------------------------------------------------------

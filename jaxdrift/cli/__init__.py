@@ -11,7 +11,7 @@ import argparse
 import importlib
 import sys
 
-from ..errors import UsageError
+from ..errors import InputError, UsageError
 
 __all__ = ["UsageError", "build_parser", "main"]
 
@@ -37,6 +37,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     parser.add_argument("--version", action="store_true", help="print the version and exit")
+    v = parser.add_mutually_exclusive_group()
+    v.add_argument("-q", "--quiet", action="store_true", help="errors and warnings only: no progress bars or notes")
+    v.add_argument("-v", "--verbose", action="store_true", help="more detail: how the run was read, timings")
     sub = parser.add_subparsers(dest="command", metavar="<command>")
     for modname in _SUBCOMMANDS:
         try:
@@ -50,6 +53,13 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``jaxdrift`` command. Exit codes: 0 done, 2 bad input or an output that cannot be
+    written (message, nothing written), 1 internal failure, 130 interrupted (Ctrl-C)."""
+    from . import _common
+
+    if argv is None:  # the real command line (tests call main([...]) in-process)
+        _common.install_interrupt_handler()
+        _common.route_warnings()
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.version:
@@ -60,13 +70,15 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    _common.set_verbosity(0 if args.quiet else 2 if args.verbose else 1, args.command)
     try:
         rc = args.func(args)
-    except UsageError as e:
+    except (UsageError, InputError) as e:
+        _common.close_progress_bars()
         print(f"jaxdrift {args.command}: error: {e}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
-        print("interrupted", file=sys.stderr)
+        print(f"jaxdrift {args.command}: interrupted", file=sys.stderr)
         return 130
     return int(rc or 0)
 

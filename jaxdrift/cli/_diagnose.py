@@ -1,17 +1,17 @@
 """``jaxdrift diagnose``: diagnose a measured run (vehicle or attitude) and write a JSON report.
 
-Thin: reads and validates the inputs (``_csvio``), calls the diagnosis, writes the report
-atomically (temporary file + rename, so a failed run never leaves a partial report). Exit codes:
-0 report written, 2 bad input (message on stderr, no report), 1 internal failure.
+Thin: checks that every output can be written (and is no input), reads and checks the run
+(:func:`jaxdrift.io.load_run`), calls the diagnosis, writes the report, the figures and the
+series through :mod:`jaxdrift.io._outputs` (temporary file + rename). Exit codes: 0 report written,
+2 bad input or unwritable output (message on stderr, nothing written), 1 internal failure,
+130 interrupted.
 """
 
 from __future__ import annotations
 
-import json
-import math
 import os
 import sys
-import tempfile
+import time
 import traceback
 
 DESCRIPTION = """\
@@ -21,14 +21,19 @@ docs/diagnosis.md.
 
 A vehicle run (columns t, f1, f2 and optionally beta, beta_rate, z3, s1, s2) is compared with the
 half-car MODEL.json (default: the seed's table). An attitude run (a header with wx) is diagnosed
-against SENSORS.json (accelerometer positions).
+against SENSORS.json (accelerometer positions). RUN may be CSV, Parquet (.parquet) or MDF4 (.mf4,
+needs `pip install jaxdrift[mdf]`); --map and --units read other column names and units. The run
+is checked for plausibility (units, dead channels, glitches) before anything is computed.
 
-exit codes: 0 report written, 2 bad input (nothing written), 1 internal failure
+exit codes: 0 report written, 2 bad input or unwritable output (nothing written),
+1 internal failure, 130 interrupted (Ctrl-C)
 """
 
 
 def add_parser(subparsers) -> None:
     import argparse
+
+    from ._common import add_run_options
 
     p = subparsers.add_parser(
         "diagnose",
@@ -36,7 +41,7 @@ def add_parser(subparsers) -> None:
         description=DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    p.add_argument("run", metavar="RUN.csv", help="measured run (CSV with a header row)")
+    p.add_argument("run", metavar="RUN", help="measured run: CSV with a header row, .parquet or .mf4")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--model", metavar="MODEL.json",
                    help="vehicle model: all of a, b, m1, m2, m3, I, k1..k4, d1..d4, g (default: the seed's table)")
@@ -44,102 +49,152 @@ def add_parser(subparsers) -> None:
                    help="attitude runs: accelerometer positions {\"positions\": [[x, y, z], ...]}")
     p.add_argument("--json", required=True, metavar="REPORT.json", help="where to write the report")
     p.add_argument("--plots", metavar="DIR", help="also write figures (PNG) into this folder")
+    p.add_argument("--series", metavar="OUT.csv|OUT.parquet",
+                   help="vehicle runs: also write the measured, simulated and extended-model signals "
+                        "on the run's time base (columns: docs/measured-data.md)")
+    add_run_options(p)
     p.set_defaults(func=run_diagnose)
 
 
-def _finite(obj):
-    """Replace non-finite floats by None so that the report is strict JSON."""
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    if isinstance(obj, dict):
-        return {k: _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if hasattr(obj, "item") and callable(obj.item):  # numpy scalar
-        return _finite(obj.item())
-    return obj
+def _kind(header, mapping_text) -> str:
+    from ..io._options import parse_map
 
-
-def write_report_atomic(path: str, report: dict) -> None:
-    """Write JSON to ``path`` through a temporary file in the same folder and a rename."""
-    text = json.dumps(_finite(report), indent=2, allow_nan=False)
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".jaxdrift-report-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "w") as fh:
-            fh.write(text + "\n")
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; a report is an ordinary file
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-
-
-def _check_output(path: str, UsageError) -> None:
-    folder = os.path.dirname(os.path.abspath(path))
-    if not os.path.isdir(folder):
-        raise UsageError(f"--json {path}: folder {folder} does not exist")
-    if os.path.isdir(path):
-        raise UsageError(f"--json {path}: is a folder, expected a file name")
-    if not os.access(folder, os.W_OK):
-        raise UsageError(f"--json {path}: folder {folder} is not writable")
+    mapped = parse_map(mapping_text) if mapping_text else {}
+    return "attitude" if ("wx" in header or "wx" in mapped) else "vehicle"
 
 
 def run_diagnose(args) -> int:
     from ..errors import UsageError
-    from ..io._csvio import InputError, read_header
+    from ..io import (DEFAULT_MODEL, DEFAULT_MODEL_LABEL, check_outputs, load_run, provenance, read_header,
+                      read_model, write_json)
+    from ..io._outputs import atomic_dir, write_table
+    from . import _common as c
 
-    _check_output(args.json, UsageError)
-    try:
-        header = read_header(args.run)
-    except InputError as e:
-        raise UsageError(str(e)) from None
-    if "wx" in header:
+    t_start = time.monotonic()
+    if args.series and not str(args.series).lower().endswith((".csv", ".parquet", ".pq")):
+        raise UsageError(f"--series {args.series}: the name must end in .csv or .parquet")
+    check_outputs([("--json", args.json, "file"), ("--series", args.series, "file"), ("--plots", args.plots, "dir")],
+                  [args.run, args.model, args.sensors])
+    kind = _kind(read_header(args.run), args.map)
+    opts = c.run_options(args)
+    if kind == "attitude":
         if args.model:
             raise UsageError(f"{args.run}: an attitude run (column wx) takes --sensors, not --model")
+        if args.series:
+            raise UsageError("--series: only for vehicle runs (the attitude report holds its signals' summary)")
+        from ..diagnosis.attitude._diagnose import read_sensors
+        from ..io._attitude_files import read_attitude_run
+
+        run = read_attitude_run(args.run, checks=True, **opts)
+        for w in run["warnings"]:
+            c.warn(w)
+        for n in run["info"]["notes"]:
+            c.info(n)
+        reading = run["info"]
+        positions = None
+        if run["acc"] is not None:
+            if args.sensors is None:
+                raise UsageError(f"{args.run}: the run has accelerometer columns; give their positions with --sensors SENSORS.json")
+            positions = read_sensors(args.sensors, run["acc"].shape[1])
+        elif args.sensors is not None:
+            raise UsageError(f"{args.sensors}: sensor positions given but {args.run} has no accelerometer columns")
+        bar = c.progress(total=4, desc="diagnose", unit="step")  # from here on: computing
+        bar.update(1)
+        model_desc = {"sensors": os.path.basename(args.sensors) if args.sensors else None}
         try:
-            from ..diagnosis.attitude._diagnose import run_attitude_diagnosis
-        except ImportError as e:
-            print(f"jaxdrift diagnose: internal error: the attitude diagnosis is not available ({e})",
-                  file=sys.stderr)
-            return 1
-        try:
-            report = run_attitude_diagnosis(args.run, args.sensors, args.plots)
+            from ..diagnosis.attitude._pipeline import diagnose_attitude
+            from ..diagnosis.attitude._report import write_plots
+
+            report, plots = diagnose_attitude(run, positions)
         except UsageError:
             raise
         except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
-            print("jaxdrift diagnose: internal error while diagnosing the attitude run:",
-                  file=sys.stderr)
+            bar.close()
+            print("jaxdrift diagnose: internal error while diagnosing the attitude run:", file=sys.stderr)
             traceback.print_exc()
             return 1
+        bar.update(2)
+        if args.plots:
+            with atomic_dir(args.plots, "--plots") as tmp:
+                names = write_plots(plots, tmp)
+            report["plots"] = [os.path.join(args.plots, os.path.basename(str(n))) for n in names]
     else:
         if args.sensors:
             raise UsageError(f"{args.run}: a vehicle run (no column wx) takes --model, not --sensors")
-        from ..io._csvio import DEFAULT_MODEL, read_model, read_vehicle_run
-
-        try:
-            run = read_vehicle_run(args.run)
-            model = read_model(args.model) if args.model else dict(DEFAULT_MODEL)
-        except InputError as e:
-            raise UsageError(str(e)) from None
+        model = read_model(args.model) if args.model else dict(DEFAULT_MODEL)
+        run = load_run(args.run, "vehicle", model=model if args.model else None, **opts)
+        if not args.model:
+            c.info(f"no --model given: using {DEFAULT_MODEL_LABEL}")
         for w in run.warnings:
-            print(f"jaxdrift diagnose: warning: {w}", file=sys.stderr)
+            c.warn(w)
+        for n in run.info["notes"]:
+            c.info(n)
+        reading = run.info
+        c.detail(f"read {run.n} samples at {run.info['rate_hz']:.6g} Hz ({run.info['format']}) in "
+                 f"{time.monotonic() - t_start:.1f} s")
+        bar = c.progress(total=4, desc="diagnose", unit="step")  # from here on: computing
+        bar.update(1)
+        model_desc = ({"file": os.path.basename(args.model)} if args.model else {"default": DEFAULT_MODEL_LABEL})
+        model_desc["parameters"] = model
         try:
             from ..diagnosis.vehicle._diagnose import diagnose_vehicle_run
 
-            report = diagnose_vehicle_run(run, model, args.plots)
+            log = _BarLog(bar)
+            if args.plots:
+                with atomic_dir(args.plots, "--plots") as tmp:
+                    report = diagnose_vehicle_run(run, model, tmp, log=log)
+                report = _retarget(report, tmp, args.plots)
+            else:
+                report = diagnose_vehicle_run(run, model, None, log=log)
+            for line in log:
+                c.detail(line)
+            bar.update(1)
+            if args.series:
+                from ..diagnosis._series import vehicle_series
+
+                bar.set_postfix_str("series")
+                write_table(args.series, vehicle_series(run, model, report), "--series")
+            bar.update(1)
         except UsageError:
             raise
-        except Exception:  # noqa: BLE001
-            print("jaxdrift diagnose: internal error while diagnosing the vehicle run:",
-                  file=sys.stderr)
+        except Exception as e:  # noqa: BLE001
+            from ..errors import InputError
+
+            if isinstance(e, InputError):
+                raise
+            bar.close()
+            print("jaxdrift diagnose: internal error while diagnosing the vehicle run:", file=sys.stderr)
             traceback.print_exc()
             return 1
-    write_report_atomic(args.json, report)
-    print(f"report written to {args.json}", file=sys.stderr)
+    report["provenance"] = provenance(
+        "diagnose", [args.run, args.model, args.sensors], model=model_desc,
+        options={"kind": kind, **opts, "plots": args.plots, "series": args.series})
+    report["provenance"]["reading"] = {k: v for k, v in reading.items() if k != "quantum"}
+    write_json(args.json, report, "--json")
+    bar.update(bar.total - bar.n)
+    bar.close()
+    c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))
     return 0
+
+
+class _BarLog(list):
+    """The diagnosis's step log: each step shows on the progress bar (and with -v, afterwards)."""
+
+    def __init__(self, bar):
+        super().__init__()
+        self._bar = bar
+
+    def append(self, line):
+        super().append(line)
+        self._bar.set_postfix_str(str(line)[:40])
+
+
+def _retarget(obj, old: str, new: str):
+    """Paths inside the report that point into the temporary plots folder point to the real one."""
+    if isinstance(obj, str):
+        return obj.replace(old, new) if old in obj else obj
+    if isinstance(obj, dict):
+        return {k: _retarget(v, old, new) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_retarget(v, old, new) for v in obj]
+    return obj

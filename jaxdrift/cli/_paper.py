@@ -1,8 +1,9 @@
 """``jaxdrift paper`` and ``jaxdrift pointmass``: the seed paper's studies in one command each.
 
-Thin: parses and checks the arguments, calls :mod:`jaxdrift.studies._study` / :mod:`jaxdrift.studies._pointmass`,
-writes figures and JSON (into a temporary folder first, moved into place at the end). See
-``docs/paper-study.md``.
+Thin: parses and checks the arguments and the output folder (before computing), calls
+:mod:`jaxdrift.studies._study` / :mod:`jaxdrift.studies._pointmass`, writes figures and JSON through
+:func:`jaxdrift.io.atomic_dir` (a temporary folder, moved into place at the end with a manifest).
+See ``docs/paper-study.md``.
 """
 
 from __future__ import annotations
@@ -26,8 +27,11 @@ solver_comparison.md. Drift-off time: the first time |beta - beta_measured| exce
 --threshold-deg (default 1 deg). The defaults take a few minutes on 2 CPU cores; --quick takes
 about a minute; scale up with --samples, --models, --duration.
 
-exit codes: 0 done, 2 bad input (nothing written)
+exit codes: 0 done, 2 bad input or unwritable --out (nothing written), 130 interrupted
 """
+
+PAPER_FILES = ("fig4_road_forces.png", "fig5_z3_beta.png", "fig6_noise_samples.png", "fig7_perturbed_models.png",
+               "fig8_enforced_moment.png", "fig_pitch_spring.png", "summary.json", "solver_comparison.md")
 
 POINTMASS_DESCRIPTION = """\
 Section 2 of the seed paper: the point mass (2.1) integrated by the explicit Euler scheme (2.3)
@@ -36,7 +40,7 @@ many noise samples against the closed forms (2.8) (eta = 0) and (2.11) (eta > 0)
 with the t^1/2 and t^3/2 slopes, and writes pointmass_summary.json (variance ratios with the 99 %
 chi-square interval, fitted slopes).
 
-exit codes: 0 done, 2 bad input (nothing written)
+exit codes: 0 done, 2 bad input or unwritable --out (nothing written), 130 interrupted
 """
 
 
@@ -123,13 +127,25 @@ def _enable_x64():
     jax.config.update("jax_enable_x64", True)
 
 
-def _check_out(path):
-    if os.path.exists(path) and not os.path.isdir(path):
-        raise _usage(f"--out {path}: exists and is not a folder")
+def _check_out(path, names=(), inputs=()):
+    """Before computing: --out is a folder (or can be made), writable, and overwrites no input."""
+    from ..io import check_outputs
+
+    check_outputs([("--out", path, "dir", names)], inputs)
+
+
+def _show_progress(args) -> bool:
+    from . import _common
+
+    return not args.no_progress and _common.VERBOSITY >= 1
+
+
+def _options(args, skip=("func", "command", "quiet", "verbose", "version")) -> dict:
+    return {k: v for k, v in vars(args).items() if k not in skip}
 
 
 def run_paper(args) -> int:
-    _check_out(args.out)
+    _check_out(args.out, PAPER_FILES, [args.params])
     params = _load_params(args.params)
     if args.quick:
         args.duration, args.samples, args.models = min(args.duration, 10.0), min(args.samples, 8), min(args.models, 8)
@@ -161,15 +177,21 @@ def run_paper(args) -> int:
         n_noise=args.samples, n_models=args.models, n_compare=args.compare_samples, n_spring=args.spring_samples,
         seed=args.seed, drift_threshold_deg=args.threshold_deg,
         compare_solvers=(SOLVER_LOOSE,) if args.no_compare else (SOLVER_LOOSE, SOLVER_TIGHT, SOLVER_FIXED),
-        progress=not args.no_progress, linear=args.linear,
+        progress=_show_progress(args), linear=args.linear,
     )
     try:
         cfg.validate()
     except ValueError as e:
         raise _usage(str(e)) from None
-    res = run_paper_study(cfg, log=lambda m: print(m, flush=True))
-    files = write_paper_outputs(res, args.out, dpi=args.dpi)
+    from ..io import atomic_dir, provenance
+    from . import _common
+
+    res = run_paper_study(cfg, log=lambda m: print(m, flush=True) if _common.VERBOSITY >= 1 else None)
     s = res["summary"]
+    s["provenance"] = provenance("paper", [args.params], model={"file": args.params} if args.params else
+                                 {"default": "the seed's table (HalfCarParams())"}, options=_options(args))
+    with atomic_dir(args.out, "--out") as tmp:
+        files = write_paper_outputs(res, tmp, dpi=args.dpi)
     print(_paper_report(s))
     print(f"wrote {', '.join(files)} to {args.out} ({s['timings_s']['total']:.0f} s)")
     return 0
@@ -202,7 +224,7 @@ def _paper_report(s) -> str:
 
 
 def run_pointmass(args) -> int:
-    _check_out(args.out)
+    _check_out(args.out, ("fig2_pointmass_std.png", "pointmass_summary.json"))
     if args.paths < 2:
         raise _usage(f"--paths must be >= 2, got {args.paths}")
     for name in ("duration", "dt", "mass"):
@@ -217,24 +239,17 @@ def run_pointmass(args) -> int:
         raise _usage(f"--duration / --dt must give at least 20 steps, got {args.duration / args.dt:g}")
 
     _enable_x64()
-    import shutil
-    import tempfile
-
+    from ..io import atomic_dir, provenance
     from ..studies._pointmass import plot_pointmass, run_pointmass_study
 
     study = run_pointmass_study(sigma_m=args.sigma_m, dt=args.dt, duration=args.duration, n_paths=args.paths,
-                                etas=tuple(args.eta), mass=args.mass, seed=args.seed, progress=not args.no_progress)
-    os.makedirs(args.out, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".pointmass-", dir=args.out)
+                                etas=tuple(args.eta), mass=args.mass, seed=args.seed, progress=_show_progress(args))
+    study["provenance"] = provenance("pointmass", [], model={"mass_kg": args.mass}, options=_options(args))
     files = ["fig2_pointmass_std.png", "pointmass_summary.json"]
-    try:
+    with atomic_dir(args.out, "--out") as tmp:
         plot_pointmass(study, os.path.join(tmp, files[0]), dpi=args.dpi)
         with open(os.path.join(tmp, files[1]), "w") as fh:
             json.dump(study, fh, indent=1)
-        for f in files:
-            os.replace(os.path.join(tmp, f), os.path.join(args.out, f))
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
     lo, hi = study["chi2_99_interval"]
     print(f"99 % chi-square interval of Var ratios for {args.paths} paths: [{lo:.3f}, {hi:.3f}]")
     for c in study["cases"]:

@@ -1,4 +1,7 @@
-"""Reading and writing measured runs and model files (numpy only).
+"""Reading and writing measured runs and model files (numpy and pyarrow; no JAX).
+
+:func:`load_run` is the one reader for every kind of run (vehicle, attitude, durability) and
+format (CSV, Parquet, MDF4); :mod:`._outputs` the one way results are written.
 """
 
 from __future__ import annotations
@@ -17,5 +20,21 @@ from ._csvio import (
     read_model as read_model,
     write_vehicle_run as write_vehicle_run,
 )
+from ._model import DEFAULT_MODEL_LABEL as DEFAULT_MODEL_LABEL
+from ._runs import AttitudeRun as AttitudeRun, load_run as load_run
+from ._outputs import (
+    atomic_dir as atomic_dir,
+    atomic_path as atomic_path,
+    check_outputs as check_outputs,
+    write_json as write_json,
+)
+from ._provenance import provenance as provenance
+from ._attitude_files import (
+    read_attitude_run as read_attitude_run,
+    read_sensors as read_sensors,
+)
 
-__all__ = ['DEFAULT_MODEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'read_header', 'read_model', 'read_vehicle_run', 'write_vehicle_run']
+__all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES',
+           'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
+           'check_outputs', 'load_run', 'provenance', 'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
+           'write_json', 'write_vehicle_run']

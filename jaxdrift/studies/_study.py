@@ -308,11 +308,16 @@ def _pitch_vf_linear(t, x, args):
 
 def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSignal, save_ts,
                               solver: SolverSpec = SOLVER_LOOSE, t_span=None, linear: bool = False):
-    """Step 5: model (A.5) with forces and the pitch ``(beta, beta', beta'')`` prescribed.
+    """Step 5: model (A.5) driven by ``forces`` (2 channels) with the pitch prescribed by ``pitch``
+    (3 channels: ``beta, beta', beta''``).
 
-    Returns ``(solution, lam, inertia)``: the engine's ``Solution`` (8 states), the enforced moment
-    ``lambda = I beta'' - cos(beta)(b f3 - a f4)`` and the inertia term ``I beta''`` at ``save_ts``.
-    The initial state is the static equilibrium at the prescribed initial pitch.
+    Returns ``(solution, lam, inertia)``: the engine's ``Solution`` (8 states ``z1, z2, z3, z1',
+    z2', z3', zeta1, zeta2``), the enforced moment ``lambda = I beta'' - cos(beta)(b f3 - a f4)``
+    (``cos(beta) = 1`` with ``linear``) and the inertia term ``I beta''`` at ``save_ts``. The
+    initial state is the model's static equilibrium ``static_equilibrium(params, "pitch")``,
+    whatever the prescribed pitch is at the start: a pitch that does not start at the model's
+    equilibrium pitch (0 for the seed's symmetric table) gives an initial transient in ``lam``.
+    ``t_span``: ``(t0, t1)``, default the first and last save time.
     """
     _check_signal("forces", forces, 2)
     _check_signal("pitch", pitch, 3)

@@ -1,0 +1,78 @@
+"""``jaxdrift diagnose --series``: the signals behind a vehicle report on the run's time base.
+
+Columns: ``t``; the measured channels as read (SI); ``f1_corrected, f2_corrected``, the true-force
+estimate of the report's ``extended_model.corrections`` (``(measured(t + delay) - offset) /
+scale``, linear interpolation between samples, the end value held beyond the run); ``sim_z1,
+sim_z2, sim_z3, sim_beta``, the force-driven model (A.3) with the given model and the measured
+forces; ``ext_z1 .. ext_beta``, the same with the extended model's parameters and the corrected
+forces. Both simulations start from each model's static equilibrium, as the diagnosis does, with
+DOPRI5 at a fixed step (the sample interval, halved until at most 1 ms).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["vehicle_series", "corrected_forces", "simulate_force_driven", "SERIES_STATES"]
+
+SERIES_STATES = ("z1", "z2", "z3", "beta")
+
+
+def corrected_forces(run, corrections: dict) -> dict[str, np.ndarray]:
+    """The report's force corrections applied to the measured forces on the run's grid."""
+    out = {}
+    for ch in ("f1", "f2"):
+        c = corrections.get(ch, {"offset": 0.0, "scale": 1.0, "delay": 0.0})
+        f = run[ch]
+        if c.get("delay", 0.0):
+            f = np.interp(run.t + c["delay"], run.t, f)
+        out[ch] = (f - c.get("offset", 0.0)) / c.get("scale", 1.0)
+    return out
+
+
+def simulate_force_driven(run, models: list[dict], forces: list[dict]) -> list[np.ndarray]:
+    """States ``(n, 10)`` of (A.3) for each (model, forces) pair, on ``run.t``."""
+    import jax
+    import jax.numpy as jnp
+
+    from ..models._halfcar import force_driven_rhs, static_equilibrium
+    from ..models._params import HalfCarParams
+    from ..solvers._inputs import SampledSignal
+    from ..solvers._solve import solve_ode
+
+    sub = int(math.ceil(run.dt / 1e-3 - 1e-9))
+    tau = run.t - run.t[0]
+    out = []
+    with jax.enable_x64(True):
+        for m, f in zip(models, forces):
+            p = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(m))
+            sig = SampledSignal(0.0, run.dt, jnp.stack([jnp.asarray(f["f1"]), jnp.asarray(f["f2"])], axis=1))
+
+            def rhs(t, y, args):
+                pp, sg = args
+                ff = sg(t)
+                return force_driven_rhs(t, y, pp, ff[0], ff[1])
+
+            sol = solve_ode(rhs, static_equilibrium(p, "force"), 0.0, float(tau[-1]), saveat=jnp.asarray(tau),
+                            args=(p, sig), dt=run.dt / sub)
+            if int(sol.result) != 0:
+                raise RuntimeError(f"force-driven simulation failed (result code {int(sol.result)})")
+            out.append(np.asarray(sol.ys))
+    return out
+
+
+def vehicle_series(run, model: dict, report: dict) -> dict[str, np.ndarray]:
+    """The columns described in the module docstring, as float64 arrays of length ``run.n``."""
+    ext = report["extended_model"]
+    fc = corrected_forces(run, ext["corrections"])
+    y0, y1 = simulate_force_driven(run, [model, ext["parameters"]],
+                                   [{ch: run[ch] for ch in ("f1", "f2")}, fc])
+    cols = {"t": run.t}
+    cols.update({c: run[c] for c in sorted(run.channels)})
+    cols["f1_corrected"], cols["f2_corrected"] = fc["f1"], fc["f2"]
+    for prefix, ys in (("sim", y0), ("ext", y1)):
+        for j, nm in enumerate(SERIES_STATES):
+            cols[f"{prefix}_{nm}"] = ys[:, j]
+    return cols

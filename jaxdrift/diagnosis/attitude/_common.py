@@ -1,0 +1,35 @@
+"""Thresholds, the finding record and the number format shared by the steps of the attitude diagnosis."""
+
+from __future__ import annotations
+
+SCHEMA = "jaxdrift.diagnosis/1"
+CHANNELS = ("wx", "wy", "wz")
+Z_SIGNIFICANT = 5.0  # |estimate - null| / SE for a systematic finding (false alarms ~ 1e-6 per test)
+DRIFT_LR = 16.0  # REML likelihood-ratio threshold for a bias random walk
+DRIFT_LR_GIVEN_BIAS = 6.0  # ... when a constant bias is significant on the channel (p ~ 0.7 %)
+POSITION_CHI2 = 40.0  # 3-dof chi-square threshold for a displaced sensor
+NONRIGID_FLOOR = 2e-3  # m/s^2: below this, a rigidity residual is not reported
+# practical floors below which a statistically significant effect is the discretisation of the file
+# (noise-free runs at 100 and 50 Hz show apparent scales of 1e-5 and 1.5e-4), not a gyro property
+SCALE_FLOOR = 5e-4  # 500 ppm
+BIAS_FLOOR = 1e-6  # rad/s (0.2 deg/h)
+DRIFT_FLOOR = 1e-7  # rad/s/sqrt(s)
+# without any white noise the residuals are the file's discretisation, which is correlated over the
+# run and can pass the statistical tests (a noise-free 30 s run at 200 Hz showed an apparent drift of
+# 3e-6 rad/s/sqrt(s)); such runs are synthetic, and the floors are raised by this factor
+NOISE_FREE_FLOOR_FACTOR = 30.0
+MIN_INTERVAL_ROWS = 20
+DRIFT_OFF_DEG = 0.5
+
+
+def finding(cause, estimate, unit, interval, evidence, z, **extra):
+    """A report finding (keys in the spec's order) and its ranking statistic ``z``."""
+    f = {"cause": cause}
+    f.update(extra)
+    f.update({"estimate": estimate, "unit": unit, "interval": interval, "evidence": evidence})
+    return f, z
+
+
+def fmt(x):
+    """Three significant digits, the precision of every number quoted in an evidence sentence."""
+    return f"{x:.3g}"

@@ -1,0 +1,233 @@
+"""Gyro bias, scale and bias drift estimators: the reference-attitude fit, REML for a bias random
+walk, and the static segment.
+
+- :func:`reference_fit`: between consecutive anchor rows the gyro-integrated relative rotation is
+  compared with the reference one; the global-frame error vector of each interval is linear in the
+  rate errors, ``e = sum_k R_k delta_k dt``, so biases (piecewise constant over segments) and scales
+  are fitted by Gauss-Newton weighted least squares with the noise covariance ``N^2 dt_i I``.
+- :func:`reml_drift`: bias drift (rate random walk) tested and estimated by REML on the segment
+  biases, whose covariance under a random walk of intensity K is :func:`rw_cov` (closed form).
+- :func:`static_segment`: windows whose rate variance equals the white-noise variance and whose
+  means agree are taken as standing still (true rate 0): their mean is the bias.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from ...models._quaternion import (
+    cumulative_quat_product_np,
+    quat_conjugate_np,
+    quat_exp_np,
+    quat_log_np,
+    quat_multiply_np,
+    rotation_matrix_np,
+)
+
+__all__ = ["reference_fit", "rw_cov", "reml_drift", "static_segment"]
+
+
+def _interval_sums(X, starts, ends):
+    """Sums of rows ``X[starts[i]:ends[i]]`` (contiguous, ends[i] == starts[i+1])."""
+    c = np.concatenate([np.zeros((1,) + X.shape[1:]), np.cumsum(X, 0)], 0)
+    return c[ends] - c[starts]
+
+
+def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6):
+    """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
+
+    ``seg_of_interval_per_channel``: list of 3 int arrays (segment index of each interval per channel).
+    ``noise_var``: N^2 for the weights; ``sample_var``: per-channel white-noise variance per sample
+    (for the errors-in-variables correction of the scale).
+    Returns parameters, covariance, residual chi-square and helpers.
+    """
+    w = run["w"]
+    dt = run["dt"]
+    q_ref = run["q_ref"]
+    a0, aN = anchors[0], anchors[-1]
+    starts, ends = anchors[:-1], anchors[1:]
+    n_int = len(starts)
+    nseg = [int(s.max()) + 1 for s in seg_of_interval_per_channel]
+    offs = np.concatenate([[0], np.cumsum(nseg)])
+    sc = int(offs[-1])
+    # parameters: biases, 3 scales, and a sampling-convention nuisance lam: the rate held over step k
+    # is omega_k + lam (D1_k - D3_k / 12), D1_k = omega_{k+1} - omega_k,
+    # D3_k = omega_{k+2} - omega_{k+1} - omega_k + omega_{k-1}. Samples of a continuous rate at t_k give
+    # the cubic step average, lam = 1/2; rates held over each step (the reference made by the
+    # exponential map of omega_k) give lam = 0; a small gyro delay shifts lam. It is fitted: its
+    # regressor telescopes over an interval, so it costs the other parameters almost nothing, while a
+    # wrong fixed convention leaves O(dt) errors per interval that look like scale errors.
+    p = sc + 4
+    theta = np.zeros(p)
+    theta[sc : sc + 3] = 1.0
+    theta[sc + 3] = 0.5
+    rows = np.arange(a0, aN)
+    w_pad = np.concatenate([w[:1], w, w[-1:], w[-1:]], 0)  # w_pad[k + 1] = w[k]
+    int_of_row = np.searchsorted(anchors, rows, side="right") - 1
+    dt_int = (ends - starts) * dt
+    wts = 1.0 / (noise_var * dt_int)  # per interval (each of 3 components)
+    for it in range(max_iter):
+        b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
+        s = theta[sc : sc + 3]
+        lam = theta[sc + 3]
+        b_ext = np.concatenate([b_rows[:1], b_rows, b_rows[-1:], b_rows[-1:]], 0)
+        wc_all = (w_pad[a0 : aN + 3] - b_ext) / s  # rows a0-1 .. aN+1
+        w0, w1, w2, wm = wc_all[1:-2], wc_all[2:-1], wc_all[3:], wc_all[:-3]
+        dw = (w1 - w0) - (w2 - w1 - w0 + wm) / 12.0
+        wc = w0 + lam * dw  # rate over each step
+        d = quat_exp_np(wc * dt)
+        # per-interval integration: prefix products restart at every anchor (re-anchored on the reference)
+        P = np.empty((len(rows) + 1, 4))
+        P[0] = [1, 0, 0, 0]
+        P[1:] = cumulative_quat_product_np(d)
+        P /= np.linalg.norm(P, axis=1, keepdims=True)
+        Pa = P[starts - a0]
+        Pb = P[ends - a0]
+        rel = quat_multiply_np(quat_conjugate_np(Pa), Pb)  # gyro relative rotation over each interval
+        qa = q_ref[starts]
+        qb = q_ref[ends]
+        err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
+        e = quat_log_np(err_q)  # (n_int, 3) global frame
+        # attitude of each row, anchored on its interval's reference
+        anc = anchors[int_of_row]
+        G = quat_multiply_np(quat_multiply_np(q_ref[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
+        R = rotation_matrix_np(G) * dt  # (rows, 3, 3)
+        J = np.zeros((n_int, 3, p))
+        RB = _interval_sums(R, starts - a0, ends - a0)  # (n_int, 3, 3)
+        RS = _interval_sums(R * wc[:, None, :], starts - a0, ends - a0)
+        for c in range(3):
+            cols = offs[c] + seg_of_interval_per_channel[c]
+            J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
+            J[:, :, sc + c] = -RS[:, :, c] / s[c]
+        J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
+        Jf = J.reshape(-1, p)
+        ef = e.reshape(-1)
+        Wf = np.repeat(wts, 3)
+        H = Jf.T @ (Wf[:, None] * Jf)
+        g = Jf.T @ (Wf * ef)
+        # errors in variables: the scale regressor sum R omega_c dt carries the same white noise as e;
+        # remove the expected product, (1/s^2) sum_i w_i n_i sigma_c^2 dt^2, from score and Hessian
+        weak = []
+        for c in range(3):
+            eiv = float(np.sum(wts * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
+            if eiv > 0.25 * H[sc + c, sc + c]:
+                # the rotation about this axis is too small against the noise: the corrected Hessian
+                # would be near zero. The scale is not observable here; keep it at 1.
+                weak.append(c)
+                H[sc + c, :] = 0.0
+                H[:, sc + c] = 0.0
+                H[sc + c, sc + c] = 1.0
+                g[sc + c] = theta[sc + c] - 1.0
+                continue
+            g[sc + c] += eiv
+            H[sc + c, sc + c] -= eiv
+        step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
+        theta = theta + step
+        se = np.sqrt(np.abs(np.diag(np.linalg.pinv(H, rcond=1e-12))))
+        if np.all(np.abs(step) <= 1e-3 * se + 1e-15):
+            break
+    # residual after the last step (linearised)
+    res = ef + Jf @ step
+    chi2 = float(np.sum(Wf * res**2))
+    dof = max(1, len(ef) - p)
+    cov = np.linalg.pinv(H, rcond=1e-12)
+    return {
+        "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
+        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]), "weak_scale": weak,
+    }
+
+
+def rw_cov(bounds):
+    """Covariance of segment means of a standard Brownian motion W(0) = 0 over [bounds[m], bounds[m+1])."""
+    mid = 0.5 * (bounds[:-1] + bounds[1:])
+    L = np.diff(bounds)
+    M = len(L)
+    S = np.empty((M, M))
+    for i in range(M):
+        for j in range(M):
+            if i == j:
+                S[i, j] = bounds[i] + L[i] / 3.0
+            else:
+                S[i, j] = mid[min(i, j)]
+    return S
+
+
+def reml_drift(b, V, S_rw):
+    """REML for ``b ~ N(beta 1, V + K^2 S_rw)``: MLE of K, 95 % profile interval, LR vs K = 0, beta."""
+    M = len(b)
+    X = np.ones((M, 1))
+
+    def ll(K2):
+        Sig = V + K2 * S_rw
+        try:
+            L = np.linalg.cholesky(Sig)
+        except np.linalg.LinAlgError:
+            return -np.inf, 0.0, np.inf
+        Li = np.linalg.inv(L)
+        Si = Li.T @ Li
+        xsx = float((X.T @ Si @ X)[0, 0])
+        beta = float((X.T @ Si @ b)[0]) / xsx
+        r = b - beta
+        val = -0.5 * (2 * np.sum(np.log(np.diag(L))) + np.log(xsx) + float(r @ Si @ r))
+        return val, beta, 1.0 / xsx
+
+    scale = max(float(np.max(np.abs(np.diff(b)))), 1e-30) ** 2 / max(float(np.max(np.diag(S_rw))), 1e-30)
+    grid = np.concatenate([[0.0], scale * np.logspace(-8, 3, 400)])
+    vals = np.array([ll(k2)[0] for k2 in grid])
+    i = int(np.argmax(vals))
+    # refine around the max
+    lo_k, hi_k = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    fine = np.linspace(lo_k, hi_k, 200)
+    fv = np.array([ll(k2)[0] for k2 in fine])
+    j = int(np.argmax(fv))
+    K2hat, lmax = fine[j], fv[j]
+    allg = np.concatenate([grid, fine])
+    allv = np.concatenate([vals, fv])
+    order = np.argsort(allg)
+    allg, allv = allg[order], allv[order]
+    inside = allv >= lmax - 0.5 * stats.chi2.ppf(0.95, 1)
+    k2lo, k2hi = allg[inside].min(), allg[inside].max()
+    lr = 2.0 * (lmax - vals[0])
+    _, beta, beta_var = ll(K2hat)
+    return {"K": math.sqrt(K2hat), "interval": [math.sqrt(k2lo), math.sqrt(k2hi)], "lr": lr, "beta": beta, "beta_var": beta_var}
+
+
+def static_segment(w, dt, sigma):
+    n = w.shape[0]
+    W = int(max(50, round(0.5 / dt)))
+    nw = n // W
+    if nw < 4:
+        return None
+    x = w[: nw * W].reshape(nw, W, 3)
+    m = x.mean(1)
+    v = x.var(1, ddof=1)
+    s2 = np.maximum(sigma**2, 1e-30)
+    ok_var = np.all(v / s2 < 1.0 + 5.0 * np.sqrt(2.0 / W), axis=1)
+    ok_mean = np.ones(nw, bool)
+    dm = np.abs(np.diff(m, axis=0))
+    cons = np.all(dm < 5.0 * np.sqrt(2.0 * s2 / W) + 1e-12, axis=1)
+    static = ok_var.copy()
+    # a static window must agree in mean with a static neighbour
+    ok_mean[:] = False
+    ok_mean[:-1] |= cons & ok_var[1:]
+    ok_mean[1:] |= cons & ok_var[:-1]
+    static &= ok_mean
+    best, cur, start = (0, 0), 0, 0
+    for i, s in enumerate(static):
+        if s:
+            if cur == 0:
+                start = i
+            cur += 1
+            if cur > best[1] - best[0]:
+                best = (start, start + cur)
+        else:
+            cur = 0
+    i0, i1 = best
+    if i1 - i0 < 4 or (i1 - i0) * W * dt < 2.0:
+        return None
+    seg = w[i0 * W : i1 * W]
+    return {"rows": (i0 * W, i1 * W), "mean": seg.mean(0), "n": seg.shape[0], "data": seg}
+

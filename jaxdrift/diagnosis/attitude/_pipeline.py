@@ -1,0 +1,371 @@
+"""The attitude diagnosis as a pipeline of named steps over one state (:class:`AttitudeState`).
+
+:func:`diagnose_attitude` runs, in this order:
+
+1. :func:`gyro_noise_step`: white gyro noise from high-order differences, and the floors below which
+   an effect is the file's discretisation;
+2. :func:`reference_step` (two or more reference rows): biases, scales and bias drift from the
+   reference attitude, the attitude error before and after the corrections;
+   or :func:`static_segment_step` (otherwise): biases from a segment standing still;
+3. :func:`jaxdrift.diagnosis.attitude._array.array_step` (with sensor positions): positions, gyro
+   biases through the centripetal terms, accelerometer noise and rigidity;
+4. :func:`allan_step`: Allan deviation of the best error series;
+5. :func:`jaxdrift.diagnosis.attitude._report.assemble_report`: ranking and the report dict.
+
+Each step reads and writes named fields of the state; the report is assembled from them only.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import stats
+
+from ...models._quaternion import (
+    integrate_rates_np,
+    quat_conjugate_np,
+    quat_log_np,
+    quat_multiply_np,
+    rotation_angle_between_np,
+)
+from ._array import array_step
+from ._common import (
+    BIAS_FLOOR,
+    CHANNELS,
+    DRIFT_FLOOR,
+    DRIFT_LR,
+    DRIFT_LR_GIVEN_BIAS,
+    DRIFT_OFF_DEG,
+    MIN_INTERVAL_ROWS,
+    NOISE_FREE_FLOOR_FACTOR,
+    SCALE_FLOOR,
+    Z_SIGNIFICANT,
+    finding,
+    fmt,
+)
+from ._gyro import reference_fit, reml_drift, rw_cov, static_segment
+from ._noise import allan, estimate_white_noise
+from ._report import assemble_report
+
+__all__ = ["AttitudeState", "diagnose_attitude"]
+
+
+@dataclass
+class AttitudeState:
+    """What the steps know about one run; filled in step by step."""
+
+    run: dict
+    positions: object = None
+    notes: list = field(default_factory=list)
+    observed: list = field(default_factory=list)
+    not_observed: list = field(default_factory=list)
+    findings: list = field(default_factory=list)  # (finding, z)
+    plots: dict = field(default_factory=dict)
+    # gyro noise (gyro_noise_step)
+    wn: dict | None = None
+    floor: float = 0.0
+    noise_found: bool = False
+    sigma_axis: np.ndarray | None = None
+    noise_var_rate: float = 0.0
+    noise_finding: dict | None = None
+    scale_floor: float = 0.0
+    bias_floor: float = 0.0
+    drift_floor: float = 0.0
+    # the corrected gyro model, shared by the later steps
+    corrections: dict = field(default_factory=dict)
+    bias_path: np.ndarray | None = None
+    scale: np.ndarray | None = None
+    bias_source: str | None = None
+    allan_series: np.ndarray | None = None
+    allan_label: str | None = None
+    allan: dict | None = None
+    sim_err: dict = field(default_factory=dict)
+    gain: dict | None = None
+    n_ref: int = 0
+
+    @property
+    def t(self):
+        return self.run["t"]
+
+    @property
+    def dt(self):
+        return self.run["dt"]
+
+    @property
+    def w(self):
+        return self.run["w"]
+
+    @property
+    def n(self):
+        return len(self.run["t"])
+
+
+def diagnose_attitude(run, positions=None):
+    """The analysis behind :func:`run_attitude_diagnosis` on an already validated run dict.
+
+    Returns ``(report, plots)``: the report dict (docs/measured-data.md) and the series behind the
+    figures (:func:`jaxdrift.diagnosis.attitude._report.write_plots`).
+    """
+    s = AttitudeState(run=run, positions=positions)
+    if run.get("extra_columns"):
+        print(f"jaxdrift diagnose: warning: ignoring column(s) {', '.join(run['extra_columns'])}", file=sys.stderr)
+    gyro_noise_step(s)
+    q_ref = run["q_ref"]
+    s.n_ref = 0 if q_ref is None else int(np.sum(np.isfinite(q_ref[:, 0])))
+    if s.n_ref >= 2:
+        reference_step(s)
+    else:
+        static_segment_step(s)
+    if positions is not None:
+        array_step(s)
+    else:
+        s.not_observed.append("sensor positions and rigidity (no accelerometer array)")
+    if s.bias_source is None:
+        s.not_observed.append("gyro bias (no reference attitude, no static segment, no accelerometer array)")
+        s.not_observed.append("gyro scale and bias drift (need a reference attitude)")
+    allan_step(s)
+    return assemble_report(s), s.plots
+
+
+def gyro_noise_step(s):
+    """White gyro noise N from the rates' high-order differences; floors for the systematic effects."""
+    run, dt, w = s.run, s.dt, s.w
+    wn = estimate_white_noise(w, dt)
+    var_pooled = float(np.mean(wn["var"]))
+    var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
+    # below this a "noise" is rounding or numerical differentiation, not a gyro: three times the
+    # quantisation of the file's digits, or 1e-6 of the RMS rate (navigation-grade gyros at 1 kHz
+    # are near 2e-5 rad/s per sample, far above)
+    floor = max(3.0 * run["quantisation"], 1e-6 * float(np.sqrt(np.mean(w**2))), 1e-15)
+    noise_found = wn["plateau"] and math.sqrt(var_pooled) > floor
+    sigma_axis = wn["sigma"] if noise_found else np.zeros(3)
+    N_hat = math.sqrt(var_pooled * dt) if noise_found else 0.0
+    s.noise_var_rate = max(var_pooled * dt, (floor**2) * dt, 1e-24)  # N^2 for weights
+    if noise_found:
+        z95 = stats.norm.ppf(0.975)
+        lo = math.sqrt(max(var_pooled - z95 * var_se, 0.0) * dt)
+        hi = math.sqrt((var_pooled + z95 * var_se) * dt)
+        s.noise_finding = {
+            "cause": "gyro_noise", "estimate": N_hat, "unit": "rad/sqrt(s)", "interval": [lo, hi],
+            "evidence": (
+                f"order-{wn['order']} differences of the rates are white with per-sample std "
+                f"{', '.join(fmt(v) for v in sigma_axis)} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
+                f"N = sigma sqrt(dt) = {fmt(N_hat)} rad/sqrt(s) = {fmt(np.degrees(N_hat) * 60)} deg/sqrt(h)"
+            ),
+        }
+    else:
+        s.noise_finding = None
+        s.notes.append(
+            "no white gyro noise above the rounding of the file"
+            if wn["plateau"] else "rate differences never became white: noise not separable from the motion"
+        )
+    s.wn, s.floor, s.noise_found, s.sigma_axis = wn, floor, noise_found, sigma_axis
+    ff = 1.0 if noise_found else NOISE_FREE_FLOOR_FACTOR
+    s.scale_floor, s.bias_floor = SCALE_FLOOR * ff, BIAS_FLOOR * ff
+    # noise-free runs at 100 Hz showed apparent drifts up to 2e-5 (curves): 1e-4 there
+    s.drift_floor = DRIFT_FLOOR if noise_found else 1e-4
+    s.corrections = {c: {"bias": 0.0, "scale": 1.0} for c in CHANNELS}
+    s.bias_path = np.zeros((s.n, 3))
+    s.scale = np.ones(3)
+
+
+# --------------------------------------------------------------------------- reference attitude
+
+
+def reference_step(s):
+    """Biases, scales and bias drift from two or more reference rows; attitude error and gain."""
+    q_ref = s.run["q_ref"]
+    ref_rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
+    anchors = _anchors(ref_rows)
+    n_int = len(anchors) - 1
+    T_ref = (anchors[-1] - anchors[0]) * s.dt
+    M = int(np.clip(min(n_int // 10, T_ref / 2.0), 1, 16))  # bias segments (drift test)
+    int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
+    fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, s.sigma_axis**2)
+    s.bias_source = "reference"
+    s.observed.append(f"reference attitude on {s.n_ref} rows ({n_int} intervals used)")
+    if M >= 4:
+        drift = _drift_tests(s, fit0, anchors, int_seg, M)
+    else:
+        drift = {}
+        s.not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
+    seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
+    fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, s.sigma_axis**2)
+    infl = max(1.0, fit["chi2"] / fit["dof"])
+    _reference_findings(s, fit, infl, drift, seg_final, anchors, M)
+    if infl > 1.5:
+        s.notes.append(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
+    _reference_attitude_error(s, ref_rows, fit["lam"])
+
+
+def _anchors(ref_rows):
+    """Anchor rows: at most 3000 intervals of at least MIN_INTERVAL_ROWS rows.
+
+    Over a few steps the interpolated step rates share samples, so the interval errors are neither
+    independent nor of variance N^2 dt_i (chi2/dof 0.6 for single steps), and the scale's
+    errors-in-variables correction no longer holds; from about 10 rows on both do (measured).
+    """
+    step = max(MIN_INTERVAL_ROWS, int(math.ceil((ref_rows[-1] - ref_rows[0]) / 3000.0)))
+    grid = np.arange(ref_rows[0], ref_rows[-1], step)
+    return np.unique(np.concatenate([ref_rows[np.searchsorted(ref_rows, grid)], ref_rows[-1:]]))
+
+
+def _drift_tests(s, fit0, anchors, int_seg, M):
+    """REML test of a bias random walk on the M segment biases of each channel: {channel: result}."""
+    infl = max(1.0, fit0["chi2"] / fit0["dof"])
+    drift = {}
+    bounds_rows = np.concatenate([anchors[:-1][np.searchsorted(int_seg, np.arange(M))], [anchors[-1]]])
+    bounds = (bounds_rows - 0) * s.dt  # time since the first row
+    S_rw = rw_cov(bounds)
+    for c in range(3):
+        sl = slice(fit0["offs"][c], fit0["offs"][c + 1])
+        b = fit0["theta"][sl]
+        V = fit0["cov"][sl, sl] * infl
+        d = reml_drift(b, V, S_rw)
+        # a constant bias that is significant may be the mean of a wandering one: then the
+        # choice is between two models of the same size and a lower threshold applies
+        Vi = np.linalg.pinv(V)
+        one = np.ones(len(b))
+        z_const = abs(one @ Vi @ b) / math.sqrt(max(one @ Vi @ one, 1e-300))
+        thr = DRIFT_LR_GIVEN_BIAS if z_const > Z_SIGNIFICANT else DRIFT_LR
+        d["z_const"] = float(z_const)
+        if d["lr"] > thr and d["K"] > s.drift_floor:
+            drift[c] = d
+    return drift
+
+
+def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
+    """Scale, drift and bias findings per channel from the final reference fit; the corrections."""
+    n_int = len(anchors) - 1
+    cov = fit["cov"] * infl
+    th = fit["theta"]
+    offs = fit["offs"]
+    z95 = stats.norm.ppf(0.975)
+    sc_idx = offs[-1]
+    rows_int = np.clip(np.searchsorted(anchors, np.arange(s.n), side="right") - 1, 0, n_int - 1)
+    for c in range(3):
+        ch = CHANNELS[c]
+        s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
+        if c in fit["weak_scale"]:
+            s.not_observed.append(f"scale of {ch} (too little rotation about it against the noise)")
+        elif s_se > 0.05:
+            s.not_observed.append(f"scale of {ch} (too little rotation about it: SE {fmt(s_se)})")
+        elif abs(s_hat - 1) / max(s_se, 1e-300) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
+            s.scale[c] = s_hat
+            s.findings.append(finding(
+                "gyro_scale", float(s_hat), "ratio", [float(s_hat - z95 * s_se), float(s_hat + z95 * s_se)],
+                f"rotation about {ch} between reference rows is {fmt(s_hat)} times the gyro's "
+                f"(z = {fmt(abs(s_hat - 1) / s_se)})",
+                abs(s_hat - 1) / s_se, channel=ch))
+        s.corrections[ch]["scale"] = float(s.scale[c])
+        sl = slice(offs[c], offs[c + 1])
+        if c in drift:
+            d = drift[c]
+            b0, b0_se = d["beta"], math.sqrt(d["beta_var"])
+            s.findings.append(finding(
+                "gyro_bias_drift", d["K"], "rad/s/sqrt(s)", [float(v) for v in d["interval"]],
+                f"the {ch} bias over {M} segments wanders like a random walk (REML likelihood ratio "
+                f"{fmt(d['lr'])} against a constant bias)",
+                math.sqrt(max(d["lr"], 0.0)), channel=ch))
+            s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
+            s.corrections[ch]["bias_drift"] = float(d["K"])
+        else:
+            b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
+        if abs(b0) / max(b0_se, 1e-300) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
+            s.corrections[ch]["bias"] = float(b0)
+            if c not in drift:
+                s.bias_path[:, c] = b0
+            s.findings.append(finding(
+                "gyro_bias", float(b0), "rad/s", [float(b0 - z95 * b0_se), float(b0 + z95 * b0_se)],
+                f"integrated {ch} departs from the reference like a constant rate error of {fmt(b0)} rad/s "
+                f"(z = {fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
+                abs(b0) / b0_se, channel=ch))
+
+
+def _reference_attitude_error(s, ref_rows, lam):
+    """Attitude error integrated from the first reference row, before and after the corrections."""
+    t, dt, w, n, q_ref = s.t, s.dt, s.w, s.n, s.run["q_ref"]
+    a0 = ref_rows[0]
+    ok = ref_rows
+    q0 = q_ref[a0]
+
+    def err_of(rates):
+        r_ = np.concatenate([rates[a0 : a0 + 1], rates[a0:], rates[-1:], rates[-1:]], 0)
+        w0, w1, w2, wm = r_[1:-2], r_[2:-1], r_[3:], r_[:-3]
+        step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
+        qi = integrate_rates_np(q0, step, dt)
+        return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
+
+    e_before = err_of(w)
+    w_corr = (w - s.bias_path) / s.scale
+    e_after = err_of(w_corr)
+    thr = np.radians(DRIFT_OFF_DEG)
+    off = np.nonzero(e_before > thr)[0]
+    s.sim_err["attitude"] = {
+        "rms": float(np.sqrt(np.mean(e_before**2))), "max_abs": float(np.max(e_before)),
+        "drift_off_time_s": float(t[ok[off[0]]] - t[a0]) if len(off) else None,
+        "threshold_rad": float(thr), "unit": "rad",
+        "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row) and the reference",
+    }
+    s.gain = {"metric": "attitude_error_rms", "before": s.sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
+    s.plots["attitude"] = (t[ok], e_before, e_after)
+    # error series for Allan: per-sample rate error against the reference (dense reference only)
+    if s.n_ref >= 0.9 * n and n > 1000:
+        dq = quat_multiply_np(quat_conjugate_np(q_ref[:-1]), q_ref[1:])
+        w_ref = quat_log_np(dq) / dt
+        good = np.isfinite(w_ref).all(1)
+        s.allan_series = (w[:-1] - s.scale * w_ref)[good]
+        s.allan_label = "gyro minus reference-derived rate"
+
+
+# --------------------------------------------------------------------------- no reference
+
+
+def static_segment_step(s):
+    """Without a reference (at most one row): biases from the longest segment standing still."""
+    t, dt, w, wn = s.t, s.dt, s.w, s.wn
+    if s.n_ref == 1:
+        s.notes.append("one reference row only: used as the initial attitude, no bias information")
+    s.not_observed.append("attitude departure (no reference attitude over more than one row)")
+    st = static_segment(w, dt, wn["sigma"] if s.noise_found else np.zeros(3))
+    if st is None:
+        return
+    s.bias_source = "static"
+    i0, i1 = st["rows"]
+    s.observed.append(f"static segment t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s (assumed at rest, true rate 0)")
+    z95 = stats.norm.ppf(0.975)
+    for c in range(3):
+        ch = CHANNELS[c]
+        b = float(st["mean"][c])
+        se = math.sqrt(max(wn["var"][c], s.floor**2) / st["n"])
+        s.corrections[ch]["bias"] = b
+        s.bias_path[:, c] = b
+        if abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
+            s.findings.append(finding(
+                "gyro_bias", b, "rad/s", [float(b - z95 * se), float(b + z95 * se)],
+                f"{ch} reads {fmt(b)} rad/s on average while standing still ({fmt((i1 - i0) * dt)} s, z = {fmt(abs(b) / se)})",
+                abs(b) / se, channel=ch))
+    s.allan_series, s.allan_label = st["data"], "rates in the static segment"
+    s.not_observed.append("gyro scale (needs a reference attitude)")
+    s.not_observed.append("gyro bias drift (needs a reference attitude)")
+    s.sim_err["static_rate"] = {"rms": float(np.sqrt(np.mean(st["mean"] ** 2))), "unit": "rad/s"}
+    s.gain = {"metric": "static_mean_rate_rms", "before": float(np.sqrt(np.mean(st["mean"] ** 2))), "after": 0.0, "unit": "rad/s"}
+
+
+# --------------------------------------------------------------------------- Allan
+
+
+def allan_step(s):
+    """Allan deviation of the best available error series (the rates themselves as the last resort)."""
+    if s.allan_series is None:
+        s.allan_series, s.allan_label = s.w - s.bias_path, "measured rates (the motion dominates at long tau)"
+    if s.allan_series.shape[0] >= 64:
+        a = allan(s.allan_series, s.dt)
+        a["series"] = s.allan_label
+        s.allan = a
+        s.plots["allan"] = a
+        if s.noise_finding is not None:
+            s.noise_finding["evidence"] += f"; Allan deviation of the {s.allan_label} gives N = {fmt(a['fit']['N'])}"

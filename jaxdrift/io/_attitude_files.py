@@ -1,0 +1,137 @@
+"""Readers of attitude runs (docs/measured-data.md): the run file and the accelerometer positions JSON.
+
+The run goes through the one reader of every kind of run (:func:`jaxdrift.io.load_run`). Bad input
+raises :class:`jaxdrift.errors.UsageError` with a message that names the file, the line (row for
+binary formats) and the column; nothing is analysed here beyond what validation needs (the printed
+resolution of the rate columns, so that the diagnosis can tell noise from rounding).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+
+import numpy as np
+
+from ..errors import InputError, UsageError
+from ._runs import load_run
+from ._table import read_header_any
+
+__all__ = ["read_attitude_run", "read_sensors", "RATE_COLUMNS", "QUATERNION_COLUMNS"]
+
+CHANNELS = ("wx", "wy", "wz")
+Q_COLS = ("qw", "qx", "qy", "qz")
+RATE_COLUMNS = CHANNELS
+QUATERNION_COLUMNS = Q_COLS
+QUAT_NORM_TOL = 1e-3
+
+
+def _usage_error(msg):
+    return UsageError(msg)
+
+
+def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, checks=False):  # noqa: A002
+    """Read and validate an attitude run (CSV, Parquet or MF4) through the one reader
+    (:func:`jaxdrift.io.load_run`, the same rules and messages as vehicle runs), plus what only
+    attitude runs have: a reference quaternion given per row (all four cells or none) of norm
+    close to 1. Raises UsageError on bad input.
+
+    Returns a dict: ``path``, ``t`` (n,), ``dt``, ``w`` (n, 3), ``q_ref`` (n, 4, NaN rows where no
+    reference; None without), ``acc`` (n, N, 3) or None, ``extra_columns``, ``quantisation`` and
+    ``acc_quantisation`` (RMS rounding error of the rate and accelerometer cells as written,
+    sampled from both ends of a CSV file), ``warnings``, ``info`` (how the run was read).
+    """
+    try:
+        run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks)
+    except InputError as e:
+        raise _usage_error(str(e)) from None
+    ch = run.channels
+    where = _where(run)
+    w = np.column_stack([ch[c] for c in CHANNELS])
+    q_ref = None
+    if all(c in ch for c in Q_COLS):
+        q_ref = np.column_stack([ch[c] for c in Q_COLS])
+        fin = np.isfinite(q_ref)
+        partial = fin.any(1) & ~fin.all(1)
+        if partial.any():
+            i = int(np.argmax(partial))
+            j = int(np.argmax(~fin[i]))
+            raise _usage_error(f"{where(i, Q_COLS[j])}: empty or NaN while other quaternion cells are set")
+        have = fin.all(1)
+        norms = np.linalg.norm(np.where(have[:, None], q_ref, 1.0), axis=1)
+        bad = have & (np.abs(norms - 1.0) > QUAT_NORM_TOL)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise _usage_error(f"{where(i, None)}, columns qw..qz: quaternion norm {norms[i]:.6g} is far from 1 "
+                               f"(tolerance {QUAT_NORM_TOL:g})")
+        q_ref = np.where(have[:, None], q_ref / norms[:, None], np.nan) if have.any() else None
+    k, acc = 1, []
+    while f"a{k}x" in ch:
+        acc.append(np.column_stack([ch[f"a{k}{a}"] for a in "xyz"]))
+        k += 1
+    acc = np.stack(acc, axis=1) if acc else None  # (n, N, 3)
+    used = set(run.info["columns"].values())
+    header = read_header_any(path)
+    extra = [c for c in header if c not in used]
+    # the rounding of the rate (and accelerometer) columns as written, to tell noise from
+    # rounding: the RMS rounding error sqrt(mean(step^2) / 12) of the cells' last digits
+    acc_cols = [c for c in ch if c.startswith("a") and c[1:-1].isdigit()]
+    return {"path": path, "t": run.t, "dt": run.dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra,
+            "quantisation": _rounding_rms(run.info, CHANNELS), "acc_quantisation": _rounding_rms(run.info, acc_cols),
+            "warnings": run.warnings, "info": run.info}
+
+
+def _rounding_rms(info, columns) -> float:
+    """RMS rounding error of the sampled cells of ``columns`` (0 for binary formats: exact)."""
+    steps = [info.get("printed_steps", {}).get(c) for c in columns]
+    sq = sum(s[0] for s in steps if s)
+    n = sum(s[1] for s in steps if s)
+    return float(math.sqrt(sq / n / 12.0)) if n else 0.0
+
+
+def _where(run):
+    fname = os.path.basename(str(run.path))
+    binary = run.info["format"] != "csv"
+
+    def where(i, col):
+        loc = f"row {i + 1}" if binary else f"line {i + 2}"
+        return f"{fname}, {loc}" + (f", column {col}" if col else "")
+
+    return where
+
+
+def read_sensors(path, n_expected=None, check_geometry=None):
+    """Read and validate ``{"positions": [[x, y, z], ...]}``: N >= 4 numbers triples.
+
+    ``check_geometry(r)`` (optional) returns ``None`` or the reason the positions cannot serve (the
+    diagnosis passes :func:`jaxdrift.models.check_positions`, the rank condition of section 3.1,
+    which lives with the model: this layer imports numpy only).
+    """
+    if not os.path.isfile(path):
+        raise _usage_error(f"{path}: no such file")
+    try:
+        with open(path) as fh:
+            obj = json.load(fh)
+    except json.JSONDecodeError as e:
+        raise _usage_error(f"{path}: not valid JSON ({e})") from None
+    if not isinstance(obj, dict) or "positions" not in obj:
+        raise _usage_error(f'{path}: expected an object {{"positions": [[x, y, z], ...]}}')
+    pos = obj["positions"]
+    if not isinstance(pos, list):
+        raise _usage_error(f"{path}: positions must be a list of [x, y, z]")
+    for i, p in enumerate(pos):
+        if not (isinstance(p, list) and len(p) == 3 and all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in p)):
+            raise _usage_error(f"{path}: positions[{i}] (sensor {i + 1}) must be three numbers, got {p!r}")
+        if not all(math.isfinite(v) for v in p):
+            raise _usage_error(f"{path}: positions[{i}] (sensor {i + 1}) is not finite")
+    r = np.asarray(pos, float).reshape(-1, 3)
+    if r.shape[0] < 4:
+        raise _usage_error(f"{path}: {r.shape[0]} sensor(s); the array needs at least 4 (m + 1 >= 4, section 3.1)")
+    if n_expected is not None and r.shape[0] != n_expected:
+        raise _usage_error(f"{path}: {r.shape[0]} positions but the run has {n_expected} accelerometers (a1x..a{n_expected}z)")
+    if check_geometry is not None:
+        msg = check_geometry(r)
+        if msg:
+            raise _usage_error(f"{path}: {msg}")
+    return r

@@ -1,0 +1,290 @@
+"""One reader for every kind of run (vehicle, attitude, durability): :func:`load_run`.
+
+The same rules and messages for every kind and format (CSV, Parquet, MDF4): the columns are
+checked by name (required, optional, a name close to a known one is an error with a hint), the
+cells for empty, NaN and infinite values, the time column for order and uniform sampling (within
+the resolution it is printed with), then the run for plausibility (units, dead channels, glitches;
+:mod:`._plausible`). Every refusal is an :class:`InputError` naming the file, the line (or row) and
+the column; nothing is computed before. ``--map``, ``--units`` and ``--fs`` are the options
+``map``, ``units`` and ``fs``; ``force=True`` turns plausibility errors into warnings.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import re
+
+import numpy as np
+
+from ..errors import InputError
+from ._model import DEFAULT_MODEL, DEFAULT_MODEL_LABEL
+from ._options import parse_map, parse_units, quantity_of, UNITS
+from ._plausible import plausibility_problems
+from ._table import Columns, file_label, read_columns, read_header_any
+
+__all__ = ["VehicleRun", "AttitudeRun", "KINDS", "load_run", "VEHICLE_REQUIRED", "VEHICLE_OPTIONAL",
+           "ATTITUDE_REQUIRED", "ATTITUDE_OPTIONAL", "MIN_SAMPLES", "MIN_DURATION_S", "JITTER_TOL"]
+
+VEHICLE_REQUIRED: tuple[str, ...] = ("t", "f1", "f2")
+VEHICLE_OPTIONAL: tuple[str, ...] = ("beta", "beta_rate", "z3", "s1", "s2", "zeta1", "zeta2")
+ATTITUDE_REQUIRED: tuple[str, ...] = ("t", "wx", "wy", "wz")
+ATTITUDE_OPTIONAL: tuple[str, ...] = ("qw", "qx", "qy", "qz")  # plus a1x, a1y, a1z, ...
+KINDS = {"vehicle": (VEHICLE_REQUIRED, VEHICLE_OPTIONAL), "durability": (VEHICLE_REQUIRED, VEHICLE_OPTIONAL),
+         "attitude": (ATTITUDE_REQUIRED, ATTITUDE_OPTIONAL)}
+
+#: A vehicle run needs at least this many samples and this duration to say anything about drift:
+#: the chassis modes of the seed's vehicle have time constants of about 0.1-1 s.
+MIN_SAMPLES = 100
+MIN_DURATION_S = 1.0
+#: an attitude run needs this many rows (the noise estimate uses up to 8th differences)
+MIN_ATTITUDE_ROWS = 16
+#: Relative jitter allowed on the sample spacing (the spec: below 1e-6), on top of the
+#: resolution the time column is printed with.
+JITTER_TOL = 1e-6
+_ACC = re.compile(r"^a(\d+)([xyz])$")
+
+
+@dataclasses.dataclass(frozen=True)
+class VehicleRun:
+    """A validated run: uniform time grid and the channels present (float64 arrays, SI units).
+
+    ``info`` says how it was read: format, file columns used, units converted, rate, notes."""
+
+    path: str
+    t: np.ndarray
+    channels: dict[str, np.ndarray]
+    warnings: tuple[str, ...] = ()
+    info: dict = dataclasses.field(default_factory=dict, compare=False)
+
+    @property
+    def dt(self) -> float:
+        return float((self.t[-1] - self.t[0]) / (len(self.t) - 1))
+
+    @property
+    def n(self) -> int:
+        return len(self.t)
+
+    def has(self, name: str) -> bool:
+        return name in self.channels
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.channels[name]
+
+
+class AttitudeRun(VehicleRun):
+    """A validated attitude run (same fields; channels ``wx, wy, wz``, ``qw..qz``, ``a1x..``).
+
+    Empty reference-quaternion cells are NaN (rows without a reference)."""
+
+
+def _known(kind: str, name: str) -> bool:
+    req, opt = KINDS[kind]
+    return name in req or name in opt or (kind == "attitude" and bool(_ACC.match(name)))
+
+
+def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
+    """Check the (mapped) header. Returns (warnings, close-name problems)."""
+    req, opt = KINDS[kind]
+    for i, h in enumerate(header):
+        if h == "":
+            raise InputError(f"{fname}, line 1, column {i + 1}: empty column name in the header")
+    seen: dict[str, int] = {}
+    for i, h in enumerate(header):
+        if h in seen:
+            raise InputError(f"{fname}, line 1: column {h!r} appears twice (columns {seen[h] + 1} and {i + 1})")
+        seen[h] = i
+    extras = [h for h in header if not _known(kind, h)]
+    for r in req:
+        if r not in seen:
+            hint = difflib.get_close_matches(r, extras, n=1, cutoff=0.5)
+            hint = hint or [h for h in extras if h.lower() == r.lower()]
+            did = f"; did you mean {hint[0]!r}? (names are case-sensitive; or --map {r}={hint[0]})" if hint else ""
+            raise InputError(f"{fname}, line 1: missing required column {r!r}{did} "
+                             f"(found: {', '.join(header)}; required: {', '.join(req)})")
+    warnings, close = [], []
+    known = list(req) + list(opt)
+    for h in extras:
+        hint = difflib.get_close_matches(h, known, n=1, cutoff=0.75)
+        hint = hint or [k for k in known if k.lower() == h.lower()]
+        if hint and hint[0] not in seen:
+            close.append(f"{fname}, line 1: unknown column {h!r}: did you mean `{hint[0]}`? "
+                         f"(rename it, or --map {hint[0]}={h})")
+        else:
+            did = f" (did you mean {hint[0]!r}?)" if hint else ""
+            warnings.append(f"{fname}: column {h!r} is not used and was ignored{did}")
+    return warnings, close
+
+
+def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, kind: str):
+    """Order, uniform step within JITTER_TOL and the printed resolution; returns (t, note)."""
+    fname = file_label(cols.path)
+    n = len(t)
+    min_n = MIN_ATTITUDE_ROWS if kind == "attitude" else MIN_SAMPLES
+    if n < 2:
+        raise InputError(f"{fname}: only {n} data row(s); a run needs at least {min_n}")
+    d = np.diff(t)
+    bad = np.flatnonzero(~(d > 0))
+    if bad.size:
+        i = int(bad[0]) + 1
+        raise InputError(f"{cols.where(i, 't')}: time not strictly increasing "
+                         f"(t = {float(t[i])!r} after {float(t[i - 1])!r})")
+    step = 1.0 / fs if fs else float(np.median(d))  # the nominal step; one odd step must not move it
+    tol = JITTER_TOL * step + quantum + 4 * np.finfo(float).eps * float(np.max(np.abs(t[[0, -1]])))
+    dev = np.abs(d - step)
+    bad = np.flatnonzero(dev > tol)
+    note = None
+    if bad.size:
+        i = int(bad[0]) + 1
+        res = f" and the printed resolution {quantum:.3g} s" if quantum > 0 else ""
+        if fs and np.mean(dev > tol) > 0.5:
+            raise InputError(f"{fname}, column t: steps of {float(np.median(d)):.9g} s, but --fs {fs:g} "
+                             f"gives {step:.9g} s")
+        raise InputError(
+            f"{cols.where(i, 't')}: non-uniform sampling (step {float(d[i - 1]):.9g} s where the others "
+            f"are {step:.9g} s; relative deviation {float(dev[i - 1] / step):.2g} > {JITTER_TOL:g}{res})")
+    if np.max(dev) > JITTER_TOL * step:
+        # uniform within the printed resolution only: the exact grid is the run's time base
+        # least-squares line through (k, t_k): the rounding errors average out
+        k = np.arange(n, dtype=np.float64)
+        kc = k - 0.5 * (n - 1)
+        tbar = float(np.mean(t))
+        dt = step if fs else float(np.dot(kc, t - tbar) / np.dot(kc, kc))
+        t = tbar + kc * dt
+        note = (f"{fname}: column t is printed with a resolution of {quantum:.3g} s; the run uses "
+                f"the uniform grid t0 + k dt with dt = {dt:.12g} s")
+    duration = t[-1] - t[0]
+    if kind != "attitude" and (n < MIN_SAMPLES or duration < MIN_DURATION_S):
+        raise InputError(f"{fname}: run too short to say anything ({n} samples over {duration:.6g} s; "
+                         f"need at least {MIN_SAMPLES} samples and {MIN_DURATION_S:g} s)")
+    if kind == "attitude" and n < MIN_ATTITUDE_ROWS:
+        raise InputError(f"{fname}: only {n} data rows; an attitude run needs at least {MIN_ATTITUDE_ROWS}")
+    return t, note
+
+
+def _check_cells(cols: Columns, name: str, col: str, v: np.ndarray, allow_empty: bool) -> None:
+    e = cols.empty.get(col, -1)
+    if e >= 0 and not allow_empty:
+        extra = "" if name in ("t",) or name in KINDS["vehicle"][0] or name in KINDS["attitude"][0] \
+            else " (an optional column must be complete or left out)"
+        raise InputError(f"{cols.where(e, name)}: empty cell{extra}")
+    nan = np.isnan(v)
+    if nan.any() and not allow_empty:
+        i = int(np.argmax(nan))
+        raise InputError(f"{cols.where(i, name)}: NaN")
+    inf = np.isinf(v)
+    if inf.any():
+        i = int(np.argmax(inf))
+        raise InputError(f"{cols.where(i, name)}: infinite value {float(v[i])!r}")
+
+
+def _attitude_columns(fname, header) -> list[str]:
+    """Accelerometer triads a1x.. in order, contiguous; quaternion all four or none."""
+    present = [c for c in ATTITUDE_OPTIONAL if c in header]
+    if present and len(present) != 4:
+        missing = [c for c in ATTITUDE_OPTIONAL if c not in header]
+        raise InputError(f"{fname}, line 1: reference attitude needs qw, qx, qy, qz; missing {', '.join(missing)}")
+    acc, k = [], 1
+    while any(f"a{k}{a}" in header for a in "xyz"):
+        trip = [f"a{k}{a}" for a in "xyz"]
+        for c in trip:
+            if c not in header:
+                raise InputError(f"{fname}, line 1: accelerometer {k} needs {', '.join(trip)}; column {c} missing")
+        acc += trip
+        k += 1
+    stray = [c for c in header if _ACC.match(c) and c not in acc]
+    if stray:
+        raise InputError(f"{fname}, line 1: accelerometer column(s) {', '.join(stray)} out of sequence "
+                         f"(a1x.. must be contiguous)")
+    return present + acc
+
+
+def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | None = None,  # noqa: A002
+             force: bool = False, model: dict | None = None, checks: bool = True) -> VehicleRun:
+    """Read, validate and (``checks``) plausibility-check a run file of any supported format.
+
+    ``kind``: ``vehicle``, ``durability`` (the vehicle columns) or ``attitude``. ``map``:
+    ``"f1=Fz_FL,..."`` or a dict, contract name -> file column. ``units``: ``"f1=kN,t=ms"`` or a
+    dict. ``fs``: the sample rate [Hz] (checked against ``t``; with no ``t`` column it makes the
+    time base; for MDF4 the rate to resample to). ``force``: plausibility problems become
+    warnings. ``model``: the vehicle model for the static-load check (default: the seed's table).
+    Returns a :class:`VehicleRun` (:class:`AttitudeRun` for attitude runs); raises InputError.
+    """
+    if kind not in KINDS:
+        raise InputError(f"unknown kind of run {kind!r} (one of {', '.join(KINDS)})")
+    if fs is not None and not (np.isfinite(fs) and fs > 0):
+        raise InputError(f"--fs must be a positive rate in Hz, got {fs!r}")
+    req, opt = KINDS[kind]
+    fname = file_label(path)
+    header = read_header_any(path)
+    known_names = tuple(req) + tuple(opt)
+    mapping = parse_map(map, known_names)
+    factors = parse_units(units)
+    for col, file_col in mapping.items():
+        if file_col not in header:
+            hint = difflib.get_close_matches(file_col, header, n=1, cutoff=0.5)
+            did = f"; did you mean `{hint[0]}`?" if hint else ""
+            raise InputError(f"--map {col}={file_col}: {fname} has no column {file_col!r}{did}")
+    to_contract = {v: k for k, v in mapping.items()}
+    shadowed = [h for h in header if h in mapping and h not in to_contract]
+    canon = [to_contract.get(h, h) for h in header if h not in shadowed]
+    fmt_mf4 = str(path).lower().endswith((".mf4", ".mdf"))
+    synth_t = "t" not in canon and (fs is not None or fmt_mf4)
+    if synth_t:
+        canon = ["t"] + canon
+    warnings, close = _check_names(fname, canon, kind)
+    warnings += [f"{fname}: column {h!r} is not used (--map reads {to_contract.get(h, mapping[h])!r} from "
+                 f"{mapping[h]!r})" for h in shadowed]
+    used = [c for c in canon if c in req or c in opt]
+    if kind == "attitude":
+        used = list(req) + _attitude_columns(fname, canon)
+    for c in factors:
+        if c not in used:
+            raise InputError(f"--units {c}=...: the run has no column {c!r}")
+    file_of = {c: mapping.get(c, c) for c in used}
+    want = [file_of[c] for c in used if not (c == "t" and synth_t)]
+    cols = read_columns(path, want, fs=fs, time_col=("t" if synth_t and fmt_mf4 else None))
+    data = {c: cols.data[file_of[c]] for c in used if file_of[c] in cols.data}
+    if synth_t and "t" not in data:
+        data["t"] = np.arange(cols.n) / fs
+    cols.empty = {c: cols.empty.get(file_of[c], -1) for c in used}
+    notes = list(cols.notes)
+    converted = {}
+    for c in used:
+        f = factors.get(c)
+        stored = cols.units.get(file_of[c], "")
+        if f is None and stored and quantity_of(c):
+            table = UNITS[quantity_of(c)]
+            if stored in table and table[stored] != 1.0:
+                f = table[stored]
+                notes.append(f"{fname}: {c} stored in {stored}, converted to SI")
+        if f is not None and f != 1.0:
+            data[c] = data[c] * f
+            converted[c] = f
+    q_t = cols.quantum.get(file_of["t"], 0.0) * converted.get("t", 1.0)
+    for c in used:
+        _check_cells(cols, c, c, data[c], allow_empty=(kind == "attitude" and c in ATTITUDE_OPTIONAL))
+    t, tnote = _check_time(cols, data.pop("t"), q_t, fs, kind)
+    if tnote:
+        notes.append(tnote)
+    if kind != "attitude" and ("s1" in data) != ("s2" in data):
+        warnings.append(f"{fname}: only one of s1, s2 given; it is used alone")
+    problems = list(close)
+    if checks:
+        model_label = DEFAULT_MODEL_LABEL if model is None else "the given model"
+        problems += plausibility_problems(
+            kind, t, data, where=cols.where, name_of=lambda c: file_of.get(c, c),
+            model=dict(DEFAULT_MODEL if model is None else model), model_label=model_label,
+            quantity_of=quantity_of)
+    if problems and not force:
+        more = "\n  ".join(problems)
+        raise InputError(f"{more}\n  (nothing computed; if the file is right, --force goes on anyway)")
+    warnings += [f"{p} (--force: going on)" for p in problems]
+    info = {"format": cols.fmt, "kind": kind, "columns": {c: file_of[c] for c in used},
+            "units_converted": converted, "rate_hz": 1.0 / float((t[-1] - t[0]) / (len(t) - 1)),
+            "notes": notes, "forced": bool(problems),
+            "quantum": {c: cols.quantum.get(file_of[c], 0.0) * converted.get(c, 1.0) for c in used},
+            "printed_steps": {c: (cols.steps[file_of[c]][0] * converted.get(c, 1.0) ** 2, cols.steps[file_of[c]][1])
+                              for c in used if file_of[c] in cols.steps}}
+    cls = AttitudeRun if kind == "attitude" else VehicleRun
+    return cls(path=str(path), t=t, channels=data, warnings=tuple(warnings), info=info)
