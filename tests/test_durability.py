@@ -206,7 +206,7 @@ def test_cli_writes_the_outputs(short_run, tmp_path, capsys):
     assert _cli(path, "--out", out, "--paths", 2, "--quiet", "--seed", 5) == 0
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(["durability.json", "section_forces.csv", "section_forces.png",
-                            "rainflow_histogram.png", "damage_ratio.png"])
+                            "rainflow_histogram.png", "damage_ratio.png", "jaxdrift-manifest.json"])
     rep = json.loads((out / "durability.json").read_text())
     assert rep["schema"] == "jaxdrift.durability/1" and rep["basquin_k"] == 5.0
     assert set(rep["runs"]) == {"force_driven", "pitch_spring", "stabilised", "extended"}
@@ -259,6 +259,32 @@ def test_cli_bad_input_exits_2_and_writes_nothing(short_run, tmp_path, capsys):
         assert "error" in err and "Traceback" not in err
         assert not out.exists()
     assert a_file.read_text() == "x"
+
+
+def test_cli_reads_through_the_shared_reader(short_run, tmp_path, capsys):
+    """Unit mistakes are caught before computing (the same checks as diagnose), --units converts
+    them, and an --out folder that holds the run under an output's name is refused."""
+    path, _, _ = short_run
+    lines = path.read_text().splitlines()
+    head = lines[0].split(",")
+    i1, i2 = head.index("f1"), head.index("f2")
+    rows = []
+    for ln in lines[1:]:
+        c = ln.split(",")
+        c[i1], c[i2] = repr(float(c[i1]) / 1e3), repr(float(c[i2]) / 1e3)
+        rows.append(",".join(c))
+    kn = tmp_path / "kn.csv"
+    kn.write_text("\n".join([lines[0], *rows]) + "\n")
+    out = tmp_path / "out"
+    assert _cli(kn, "--out", out, "--paths", 0, "--quiet") == 2
+    err = capsys.readouterr().err
+    assert "kN?" in err and "f1" in err and not out.exists()
+    clash = tmp_path / "clash"
+    clash.mkdir()
+    (clash / "section_forces.csv").write_text(path.read_text())
+    assert _cli(clash / "section_forces.csv", "--out", clash, "--paths", 0, "--quiet") == 2
+    assert "would overwrite the input" in capsys.readouterr().err
+    assert (clash / "section_forces.csv").read_text() == path.read_text()
 
 
 def test_run_without_pitch_gives_the_unstabilised_variants_only(short_run):

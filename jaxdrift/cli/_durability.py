@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import sys
 import traceback
 
@@ -21,7 +20,8 @@ simulation variants force_driven, pitch_spring, stabilised (measured pitch presc
 could move (Monte-Carlo over --paths draws). Method and numbers: docs/durability.md.
 
 writes into DIR: durability.json, section_forces.csv, section_forces.png,
-rainflow_histogram.png, damage_ratio.png
+rainflow_histogram.png, damage_ratio.png, and jaxdrift-manifest.json (SHA-256 of each file,
+written last: a folder without it was not finished)
 
 exit codes: 0 written, 2 bad input (nothing written), 1 internal failure
 """
@@ -46,7 +46,10 @@ def add_parser(subparsers) -> None:
                    help="the run's diagnosis report (jaxdrift diagnose --json); default: diagnose the run now")
     p.add_argument("--window", type=float, nargs=2, metavar=("T0", "T1"),
                    help="time window of the zoomed section-force plot [s] (default: 2 s around the largest f3)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.add_argument("--quiet", action="store_true", help="no progress bar (as the global -q)")
+    from ._common import add_run_options
+
+    add_run_options(p)
     p.set_defaults(func=run_durability)
 
 
@@ -67,13 +70,6 @@ def _read_report(path, UsageError) -> dict:
 
 
 def _check_args(args, UsageError) -> None:
-    if os.path.exists(args.out) and not os.path.isdir(args.out):
-        raise UsageError(f"--out {args.out}: exists and is not a folder")
-    parent = os.path.dirname(os.path.abspath(args.out))
-    if not os.path.isdir(parent):
-        raise UsageError(f"--out {args.out}: folder {parent} does not exist")
-    if not os.access(args.out if os.path.isdir(args.out) else parent, os.W_OK):
-        raise UsageError(f"--out {args.out}: not writable")
     if args.paths < 0:
         raise UsageError(f"--paths must be >= 0, got {args.paths}")
     if not (math.isfinite(args.basquin_k) and args.basquin_k > 0):
@@ -87,18 +83,26 @@ def _check_args(args, UsageError) -> None:
 
 
 def run_durability(args) -> int:
+    from ..durability._outputs import OUTPUT_FILES
     from ..errors import InputError, UsageError
-    from ..io._csvio import DEFAULT_MODEL, read_model, read_vehicle_run
+    from ..io import DEFAULT_MODEL, DEFAULT_MODEL_LABEL, check_outputs, load_run, read_model
+    from . import _common as c
 
     _check_args(args, UsageError)
+    # before any computation: no input overwritten, every output writable
+    check_outputs([("--out", args.out, "dir", OUTPUT_FILES)], [args.run, args.model, args.report])
     try:
-        run = read_vehicle_run(args.run)
         model = read_model(args.model) if args.model else dict(DEFAULT_MODEL)
+        run = load_run(args.run, "durability", model=model if args.model else None, **c.run_options(args))
     except InputError as e:
         raise UsageError(str(e)) from None
+    if not args.model:
+        c.info(f"no --model given: using {DEFAULT_MODEL_LABEL}")
     report = _read_report(args.report, UsageError) if args.report else None
     for w in run.warnings:
-        print(f"jaxdrift durability: warning: {w}", file=sys.stderr)
+        c.warn(w)
+    for n in run.info["notes"]:
+        c.info(n)
     import jax
 
     jax.config.update("jax_enable_x64", True)
@@ -108,7 +112,9 @@ def run_durability(args) -> int:
 
         res = durability_analysis(run, model, paths=args.paths, basquin_k=args.basquin_k, seed=args.seed,
                                   pitch_spring_k=args.pitch_spring_k, pitch_spring_d=args.pitch_spring_d,
-                                  report=report, progress=not args.quiet)
+                                  report=report, progress=not args.quiet and c.VERBOSITY >= 1)
+        res.summary["provenance"]["reading"] = {k: v for k, v in run.info.items() if k != "quantum"}
+        res.summary["provenance"]["options"].update(c.run_options(args))
         written = write_outputs(res, args.out, window=args.window)
     except (UsageError, KeyboardInterrupt):
         raise
@@ -122,6 +128,6 @@ def run_durability(args) -> int:
     for v, r in s["damage_ratio_to_stabilised"].items():
         band = s["monte_carlo"].get("damage_ratio_quantiles", {}).get(v)
         extra = f" (noise 5-95 %: {band[0]:.3g}-{band[2]:.3g})" if band else ""
-        print(f"{v}: damage {r:.4g} x stabilised{extra}", file=sys.stderr)
-    print(f"wrote {len(written)} files to {args.out}", file=sys.stderr)
+        c.info(f"{v}: damage {r:.4g} x stabilised{extra}")
+    c.info(f"wrote {len(written)} files to {args.out}")
     return 0

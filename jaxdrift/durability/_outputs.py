@@ -2,10 +2,9 @@
 written atomically into a folder.
 
 Everything is computed and rendered in memory before the first byte is written, so bad input or a
-failed analysis leaves the folder untouched. Each file is then written to a temporary file in the
-target folder and moved into place with ``os.replace`` (a reader never sees a partial file); a
-folder created by this call is removed again if writing fails. :func:`atomic_write_bytes` is the one place that writes a file (temporary file + ``os.replace``), so
-it can be swapped for the I/O layer's helper.
+failed analysis leaves the folder untouched. The files then go through the I/O layer's
+:func:`jaxdrift.io._outputs.atomic_dir` (the writer every command uses): written into a temporary
+folder beside the target, renamed in one by one, with a manifest of SHA-256 sums written last.
 """
 
 from __future__ import annotations
@@ -14,36 +13,17 @@ import io
 import json
 import math
 import os
-import shutil
-import tempfile
 
 import numpy as np
 
-__all__ = ["atomic_write_bytes", "write_outputs", "csv_columns", "OUTPUT_FILES"]
+from ..io._outputs import atomic_dir
+
+__all__ = ["write_outputs", "csv_columns", "OUTPUT_FILES"]
 
 OUTPUT_FILES = ("durability.json", "section_forces.csv", "section_forces.png", "rainflow_histogram.png",
                 "damage_ratio.png")
 COLORS = {"force_driven": "tab:red", "pitch_spring": "tab:orange", "stabilised": "tab:blue",
           "extended": "tab:green", "measured": "black"}
-
-
-def atomic_write_bytes(path, data: bytes) -> None:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``."""
-    folder = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".jaxdrift-", suffix=".tmp", dir=folder)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-        umask = os.umask(0)
-        os.umask(umask)
-        os.chmod(tmp, 0o666 & ~umask)  # mkstemp makes it private; outputs are ordinary files
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
 
 
 def _finite(obj):
@@ -171,7 +151,8 @@ def _png(plt, fig, dpi) -> bytes:
     return buf.getvalue()
 
 
-def write_outputs(res, out_dir, *, window=None, dpi: int = 100, figures: bool = True) -> list[str]:
+def write_outputs(res, out_dir, *, window=None, dpi: int = 100, figures: bool = True,
+                  option: str = "--out") -> list[str]:
     """Write the outputs of a :class:`DurabilityResult` into ``out_dir`` (created if missing).
 
     All files are rendered in memory first; only then are they written, each atomically. Returns
@@ -189,16 +170,9 @@ def write_outputs(res, out_dir, *, window=None, dpi: int = 100, figures: bool = 
         blobs["rainflow_histogram.png"] = _png(plt, _fig_hist(plt, res), dpi)
         if res.summary.get("damage_ratio_to_stabilised_by_force"):
             blobs["damage_ratio.png"] = _png(plt, _fig_ratio(plt, res), dpi)
-    created = not os.path.isdir(out_dir)
-    os.makedirs(out_dir, exist_ok=True)
-    written = []
-    try:
+    with atomic_dir(out_dir, option) as tmp:
         for name, data in blobs.items():
-            path = os.path.join(out_dir, name)
-            atomic_write_bytes(path, data)
-            written.append(path)
-    except BaseException:
-        if created:
-            shutil.rmtree(out_dir, ignore_errors=True)
-        raise
+            with open(os.path.join(tmp, name), "wb") as fh:
+                fh.write(data)
+    written = [os.path.join(out_dir, name) for name in blobs]
     return written
