@@ -130,7 +130,7 @@ def run_diagnose(args) -> int:
         for w in run.warnings:
             print(f"jaxdrift diagnose: warning: {w}", file=sys.stderr)
         try:
-            from ..diagnosis.vehicle._diagnose import diagnose_vehicle_run
+            from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
 
             report = diagnose_vehicle_run(run, model, args.plots)
         except UsageError:
