@@ -8,7 +8,7 @@ import numpy as np
 import scipy.stats
 
 from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical
-from ._detectors import MOTION_COLUMN, NOISE_MIN_N, _force_hf_noise, _motion_noise_sigma, lowband_cutoff
+from ._detectors import MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff
 from ._problem import _Problem
 from ._residuals import Residuals
 
@@ -207,8 +207,12 @@ def identifiability_notes(prob: "_Problem", sel) -> list[str]:
                      "forces differ only in their small dynamic signature.")
     for name, (fc, _) in sorted(prob.pipe.band.items()):
         col = MOTION_COLUMN[name]
-        notes.append(f"White sensor noise on the measured {col} (about {_motion_noise_sigma(run[col]):.2g} "
-                     f"{'rad' if col == 'beta' else 'm'} per sample) swamps its derivatives: the {name} "
+        mn = prob.motion_noise[col]
+        unit = 'rad' if col == 'beta' else 'm'
+        notes.append(f"White sensor noise on the measured {col} (about {mn['sigma']:.2g} {unit} per sample, "
+                     f"{100 * mn['share']:.0f} % of the {name} residual above {TOP_BAND[0] * 100:.0f} % of the "
+                     f"sampling rate; printing the values with their digits alone adds {mn['written']:.2g} {unit}) "
+                     f"swamps its derivatives: the {name} "
                      f"residual is compared below {fc:.3g} Hz only, and what shows only above that "
                      "(wheel hop, fast delays) is not seen.")
     return notes
