@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ._causes import FORCE_CHANNELS, _apply
+from ._confirm import confirm_corrections
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
 from ._problem import _Problem
@@ -25,6 +26,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
     sel = _select(prob, log=log)
+    sel, held_out = confirm_corrections(prob, sel, log)
     fit = sel.fit
     dynamic = len(fit.r) > 2
 
@@ -55,6 +57,12 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
             "no systematic cause passes the test and " + noise["source"] +
             ", indistinguishable from the numerical floor of the comparison.")})
     notes += identifiability_notes(prob, sel)
+    for c, est, imp in held_out:
+        (a1, b1), (a2, b2) = imp["halves"]
+        notes.append(f"Left out of the extended model: {c.label} = {est:.5g} passed the test but does not "
+                     f"improve the {imp['channel']} residual on the whole run and on each half (RMS "
+                     f"{imp['without']:.4g} -> {imp['with']:.4g}, first half {a1:.4g} -> {b1:.4g}, second half "
+                     f"{a2:.4g} -> {b2:.4g}).")
 
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}

@@ -10,9 +10,8 @@ import numpy as np
 import scipy.signal
 
 from ._causes import FORCE_CHANNELS, _apply, _clip_theta
-from ...io._csvio import VehicleRun
-from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, _welch, lowband_cutoff,
-                         motion_noise_from_residual, welch_segment, written_noise_sigma)
+from ._detectors import MOTION_COLUMN, NOISE_MIN_N, _force_hf_noise, lowband_cutoff
+from ._motion_noise import measure_motion_noise
 from ._residuals import ResidualPipeline, Residuals
 
 
@@ -57,7 +56,7 @@ class _Problem:
         (2 pi f)^4 (or (2 pi f)^2), while force noise reaches them through the model and fades at
         high frequencies. Even 1e-6 rad of pitch noise (a CSV written with 6 decimals) swamps
         the enforced moment above a few tens of Hz. The sensor noise is measured in the top band
-        of each residual channel (``measure_motion_noise``), the force noise from the forces' 4th
+        of each residual channel (``_motion_noise.measure_motion_noise``), the force noise from the forces' 4th
         differences; each channel keeps the band where the sensor noise adds at most
         ``MOTION_NOISE_SHARE`` of the force-noise power. Clean motion records keep the full band
         (no filter).
@@ -66,7 +65,7 @@ class _Problem:
         run = pipe.run
         h = pipe.h
         sig_f = max(_force_hf_noise(run)[0], NOISE_MIN_N)
-        self.motion_noise = self.measure_motion_noise()
+        self.motion_noise, self._motion_resp = measure_motion_noise(self)
         p = self.model
         gains = {"moment": lambda w: p["I"] * w * w, "heave": lambda w: p["m3"] * w * w,
                  "spring1": lambda w: np.abs(p["k3"] + 1j * w * p["d3"]),
@@ -105,62 +104,33 @@ class _Problem:
             self._ir_cache.clear()
             self.ir, self.noise_std = self.impulse_responses(self.model)
 
-    #: share of the residual's top-band power the sensor-noise term must explain before the noise
-    #: counts as found (below it the term is the comparison's own floor: measured on clean runs
-    #: written with 9 digits, the share stays below ... )
-    MOTION_NOISE_MIN_SHARE = 0.5
+    def _lowband_channels(self) -> list[str]:
+        """The channels the force noise is measured on: those whose own measured motion shows no
+        sensor noise, where there are any. Sensor noise is white only where the motion moves many
+        units of the last written digit per sample; a slow signal written with few digits carries a
+        staircase whose low band holds more than the top band's white level says (measured: z3
+        written with 6 digits, 500 Hz, put 4x the force noise's power into the heave channel's low
+        band), so channels with noise found are used only when no other is left."""
+        dyn = [nm for nm in self.names if nm != "static"]
+        clean = [nm for nm in dyn if nm not in MOTION_COLUMN
+                 or self.motion_noise.get(MOTION_COLUMN[nm], {}).get("sigma", 0.0) <= 0]
+        return clean or dyn
 
-    def measure_motion_noise(self) -> dict:
-        """Per measured motion column: white sensor noise found in the residual's top band.
-
-        The pipeline computes the shapes itself: its residual's response to unit white noise on
-        the forces, and (from a second pipeline on the run with a small white probe added to the
-        column) to white noise on the motion. Returns ``{col: {"sigma", "share", "written"}}``:
-        the noise per sample (0 where the sensor-noise term explains less than
-        ``MOTION_NOISE_MIN_SHARE`` of the top band), the share it explains, and the rounding noise
-        of the values as written."""
-        pipe, run, model = self.pipe, self.pipe.run, self.model
-        n = pipe.n
-        out = {}
-        cols = [nm for nm in self.names if nm in MOTION_COLUMN]
-        if not cols or n < 16 * 64:
-            return out
-        zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
-        rng = np.random.default_rng(20260)  # the probes: a fixed function of the run, not of a seed
-        r0 = pipe.residuals(model, zero).channels
-        wf = {ch: rng.standard_normal(n) for ch in FORCE_CHANNELS}
-        rf = pipe.residuals(model, None, linear_part_only=True, forces=wf).channels
-        fs = 1.0 / pipe.h
-        resp = {}  # (column, channel) -> the channel's response to unit white noise on the column
-        for nm in cols:
-            col = MOTION_COLUMN[nm]
-            x = run[col]
-            amp = max(1e-4 * float(np.std(x)), 1e-12)
-            probe = amp * rng.standard_normal(n)
-            run2 = VehicleRun(path=run.path, t=run.t, channels={**run.channels, col: x + probe})
-            r2 = ResidualPipeline(run2).residuals(model, zero).channels
-            for nm2 in cols:
-                resp[(col, nm2)] = (r2[nm2] - r0[nm2]) / amp
-        # the enforced moment and heave first (each dominated by its own column's noise, growing
-        # as f^4); the spring channels also see the noise of the prescribed pitch and heave
-        # (through the simulated spring force), which is taken out before their own is measured
-        for nm in cols:
-            col = MOTION_COLUMN[nm]
-            rows = self.rows[nm]
-            nper = welch_segment(rows)
-            f, P = _welch(r0[nm][:rows], fs, nper)
-            band = (f >= TOP_BAND[0] * fs) & (f <= TOP_BAND[1] * fs)
-            known = np.zeros_like(P)
-            for col2, v in out.items():
-                if (col2, nm) in resp and v["sigma"] > 0:
-                    known += v["sigma"] ** 2 * _welch(resp[(col2, nm)][:rows], fs, nper)[1]
-            sig_m, _ = motion_noise_from_residual(r0[nm][:rows], resp[(col, nm)][:rows], rf[nm][:rows],
-                                                  fs, known=known)
-            _, G = _welch(resp[(col, nm)][:rows], fs, nper)
-            share = float(sig_m ** 2 * np.sum(G[band]) / max(np.sum(P[band]), 1e-300))
-            out[col] = {"sigma": sig_m if share >= self.MOTION_NOISE_MIN_SHARE else 0.0,
-                        "estimate": sig_m, "share": share, "written": written_noise_sigma(run[col])}
-        return out
+    def _motion_lowband_power(self, nm: str, sos, k: slice) -> float:
+        """Mean power per row that the sensor noise found on the measured motion puts into the
+        low band of the weighted channel ``nm`` (taken out of the force-noise estimate: sensor noise
+        left in the band would otherwise read as force noise)."""
+        pw = 0.0
+        for (col, nm2), e in self._motion_resp.items():
+            sig = self.motion_noise.get(col, {}).get("sigma", 0.0)
+            if nm2 != nm or sig <= 0:
+                continue
+            ch = {nm: e.copy()}
+            self.pipe._band_filter(ch)
+            x = ch[nm][self.skip[nm]:self.skip[nm] + self.rows[nm]] / self.noise_std[nm]
+            xl = scipy.signal.sosfiltfilt(sos, x)[k]
+            pw += sig ** 2 * float(np.mean(xl * xl))
+        return pw
 
     def impulse_responses(self, p: dict):
         """Per residual channel and force channel: response to a unit force sample."""
@@ -288,9 +258,7 @@ class _Problem:
         blocks = self._blocks(r[:, None])
         num = den = 0.0
         hls, lens = {}, {}
-        for nm in self.names:
-            if nm == "static":
-                continue
+        for nm in self._lowband_channels():
             x = blocks[nm][:, 0]
             L = len(x)
             k = slice(L // 20, L - L // 20)
@@ -302,7 +270,7 @@ class _Problem:
                 hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
                 unit += float(np.sum(hls[(nm, ch)] ** 2))
             lens[nm] = len(xl)
-            num += float(np.sum(xl * xl))
+            num += float(np.sum(xl * xl)) - self._motion_lowband_power(nm, sos, k) * len(xl)
             den += unit * len(xl)
         # Var(sum_a sum_t x_a(t)^2) = 2 sigma^4 sum_{a,b} sum_{t,t'} c_ab(t - t')^2, with c_ab the
         # cross-covariance of residual channels a and b: they see the same force noise, so the
@@ -318,7 +286,7 @@ class _Problem:
                 var_num += 2.0 * math.sqrt(lens[a] * lens[b]) * float(np.sum(ccf ** 2))
         if den <= 0:
             return 0.0, 1.0
-        sigma2 = num / den
+        sigma2 = max(num, 0.0) / den
         dof = 2.0 * den * den / max(var_num, 1e-300)
         return math.sqrt(max(sigma2, 0.0)), dof
 

@@ -28,6 +28,17 @@ def _chi2_sigma_interval(sigma: float, dof: float) -> tuple[float, float]:
 
 
 
+def evidence_sentence(c: Cause, est: float, ch: str, rms_without: float, rms_with: float, z: float,
+                      sigma: float, cutoff_hz: float | None = None) -> str:
+    """The evidence sentence, written from the numbers it cites (the finding carries the same
+    numbers in ``residual``, ``z`` and the ``force_noise`` finding): the verb follows the numbers."""
+    verb = "falls" if rms_with < rms_without else "rises"
+    band = f" (compared below {cutoff_hz:.3g} Hz)" if cutoff_hz is not None else ""
+    return (f"{_describe(c, est)} explains the {_CHANNEL_WORDS[ch]}{band}: its RMS {verb} from "
+            f"{rms_without:.4g} to {rms_with:.4g} {_CHANNEL_UNITS[ch]} when it is corrected "
+            f"(z = {z:.1f}, noise level {sigma:.3g} N)")
+
+
 def _alternatives_json(alts) -> list[dict]:
     """``indistinguishable_from`` entries in the report's terms (an equal offset on both forces
     is one entry per channel, as the contract names channels f1/f2)."""
@@ -145,9 +156,7 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
         ch_i = _telling_channel(prob, r_without, res1, main) if dynamic else main
         a_rms = _rms(_kept(prob, r_without, ch_i))
         b_rms = _rms(_kept(prob, res1, ch_i))
-        ev = (f"{_describe(c, est)} explains the {_CHANNEL_WORDS[ch_i]}: its RMS falls from "
-              f"{a_rms:.4g} to {b_rms:.4g} {_CHANNEL_UNITS[ch_i]} when it is corrected "
-              f"(z = {abs(sel.z[i]):.1f}, noise level {sigma:.3g} N)")
+        ev = evidence_sentence(c, est, ch_i, a_rms, b_rms, abs(sel.z[i]), sigma, pipe.band.get(ch_i, (None,))[0])
         alts = sel.alternatives.get(c, [])
         if alts:
             ev += "; the data cannot tell it from " + ", ".join(
@@ -158,6 +167,9 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
                              _practical(c, pipe))
             f["evidence"] = ev + "."
             f["z"] = float(abs(sel.z[i]))
+            f["residual"] = {"channel": ch_i, "rms_without": float(a_rms), "rms_with": float(b_rms),
+                             "unit": _CHANNEL_UNITS[ch_i],
+                             "band_hz": [0.0, float(pipe.band[ch_i][0]) if ch_i in pipe.band else 0.5 / pipe.h]}
             if alts:
                 f["indistinguishable_from"] = _alternatives_json(alts)
             findings.append(f)
@@ -232,6 +244,8 @@ def residual_gain(prob: "_Problem", res0: "Residuals", res1: "Residuals", fitted
               "static": "static_load_error_rms"}[main]
     gain = {"metric": metric, "before": _rms(_kept(prob, res0, main)), "after": _rms(_kept(prob, res1, main)),
             "unit": _CHANNEL_UNITS[main]}
+    if main in prob.pipe.band:
+        gain["band_hz"] = [0.0, float(prob.pipe.band[main][0])]
     if not dynamic:
         st = res0.channels["static"]
         gain["after"] = _rms([st[i] - corrections[ch]["offset"] for i, ch in enumerate(FORCE_CHANNELS)])
@@ -239,16 +253,29 @@ def residual_gain(prob: "_Problem", res0: "Residuals", res1: "Residuals", fitted
 
 
 def enforced_terms(prob: "_Problem", model: dict, res0: "Residuals") -> dict:
-    """The enforced moment (and vertical force) of the model, with the inertia term's size."""
+    """The enforced moment (and vertical force) of the model over the full band, with the inertia
+    term's size; where the channel is compared band-limited (sensor noise on the motion), the
+    band-limited one too, labelled with its band."""
     pipe = prob.pipe
+    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+    full = res0
+    if pipe.band:
+        band, pipe.band = pipe.band, {}
+        try:
+            full = pipe.residuals(model, zero)
+        finally:
+            pipe.band = band
+    fs2 = 0.5 / pipe.h
     out = {}
-    if "moment" in prob.names:
-        inertia = model["I"] * pipe.d2beta[:prob.rows["moment"]]
-        lam = _kept(prob, res0, "moment")
-        out["enforced_moment"] = {"rms": _rms(lam), "max_abs": float(np.max(np.abs(lam))),
-                                  "inertia_term_rms": _rms(inertia)}
-    if "heave" in prob.names:
-        mu = _kept(prob, res0, "heave")
-        out["vertical_enforced_force"] = {"rms": _rms(mu), "max_abs": float(np.max(np.abs(mu))),
-                                          "inertia_term_rms": _rms(model["m3"] * pipe.d2z3)}
+    for nm, key, inertia in (("moment", "enforced_moment", lambda: model["I"] * pipe.d2beta[:prob.rows["moment"]]),
+                             ("heave", "vertical_enforced_force", lambda: model["m3"] * pipe.d2z3)):
+        if nm not in prob.names:
+            continue
+        lam = _kept(prob, full, nm)
+        out[key] = {"rms": _rms(lam), "max_abs": float(np.max(np.abs(lam))),
+                    "inertia_term_rms": _rms(inertia()), "band_hz": [0.0, fs2]}
+        if nm in pipe.band:
+            lam_b = _kept(prob, res0, nm)
+            out[key + "_band_limited"] = {"rms": _rms(lam_b), "max_abs": float(np.max(np.abs(lam_b))),
+                                          "band_hz": [0.0, float(pipe.band[nm][0])]}
     return out

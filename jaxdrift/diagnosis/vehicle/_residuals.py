@@ -449,6 +449,8 @@ class ResidualPipeline:
         default short odd padding its step rang well into the record (a pitch-only run with 1e-5 rad
         of noise then named a mass error of 2.5)."""
         for name, (fc, sos) in self.band.items():
+            if name not in ch:
+                continue
             x = ch[name]
             padlen = min(len(x) - 1, int(math.ceil(6.0 / (fc * self.h))))
             ch[name] = scipy.signal.sosfiltfilt(sos, x, padtype="even", padlen=padlen)
