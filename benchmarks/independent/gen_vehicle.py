@@ -256,8 +256,10 @@ def design(n: int, seed: int) -> list[dict]:
     return cases
 
 
-def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500, 600, 1000, 1200, 2000)):
-    """Draw everything else of a case (vehicle, road, speed, rate, channels, sizes, noise)."""
+def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500, 600, 1000, 1200, 2000),
+              max_samples: int | None = None):
+    """Draw everything else of a case (vehicle, road, speed, rate, channels, sizes, noise);
+    ``max_samples`` shortens the run to at most that many samples (sweeps on a CPU budget)."""
     rng = np.random.default_rng(case["seed"])
     vkind = str(rng.choice(sorted(VEHICLES)))
     nominal = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in VEHICLES[vkind].items()}
@@ -266,6 +268,8 @@ def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500,
     speed = float(rng.uniform(*SPEEDS[cls]))
     fs = float(rng.choice(rates))
     dur = float(round(_loguniform(rng, *durations), 1)) if durations[0] < durations[1] else float(durations[0])
+    if max_samples and dur * fs > max_samples:
+        dur = float(round(max_samples / fs, 1))
     if case["stratum"] in ("clean", "noise"):
         chan = str(rng.choice(sorted(CHANNEL_SETS)))
     else:  # systematic effects need measured motion
