@@ -74,6 +74,46 @@ PAIRS = [(SYSTEMATIC[i], SYSTEMATIC[j]) for i in range(4) for j in range(i, 4)]
 
 
 # ----------------------------------------------------------------------------- road
+def filter_psd(n, cls: str):
+    """One-sided displacement PSD [m^3] of the shaping filter's output at n [cycles/m]."""
+    o = 2 * np.pi * np.asarray(n, float)
+    q = 2.0 * math.pi**2 * ISO_GD0[cls] * N0**2
+    return 2 * q * ROAD_OC**4 / ((o**2 + ROAD_O0**2) * (o**2 + ROAD_OC**2) ** 2)
+
+
+def filtered_noise(rng, cls: str, n: int, dx: float = ROAD_DX) -> np.ndarray:
+    """``n`` exact samples (h, h', h'') at spacing ``dx`` of the shaping filter driven by white
+    noise, started at rest (zero state at x = 0)."""
+    o0, oc = ROAD_O0, ROAD_OC
+    # h''' = oc^2 w - (o0 + 2 oc) h'' - (2 o0 oc + oc^2) h' - o0 oc^2 h
+    A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
+                  [-o0 * oc**2, -(2 * o0 * oc + oc**2), -(o0 + 2 * oc)]])
+    B = np.array([0.0, 0.0, oc**2])
+    # one-sided PSD of h' = w (white, two-sided intensity q) is q / (2 pi^2 n^2): the ISO line
+    q = 2.0 * math.pi**2 * ISO_GD0[cls] * N0**2
+    # exact discretisation (van Loan): Phi and the covariance of the noise increment
+    M = np.zeros((6, 6))
+    M[:3, :3] = -A
+    M[:3, 3:] = q * np.outer(B, B)
+    M[3:, 3:] = A.T
+    E = expm(M * dx)
+    Phi = E[3:, 3:].T
+    Qd = Phi @ E[:3, 3:]
+    L = np.linalg.cholesky(0.5 * (Qd + Qd.T))
+    xi = (rng.standard_normal((n, 3)) @ L.T).tolist()
+    s = np.zeros((n, 3))
+    (p00, p01, p02), (p10, p11, p12), (p20, p21, p22) = Phi.tolist()
+    h0 = h1 = h2 = 0.0
+    rows = [(0.0, 0.0, 0.0)]
+    for k in range(1, n):
+        x0, x1, x2 = xi[k]
+        h0, h1, h2 = (p00 * h0 + p01 * h1 + p02 * h2 + x0, p10 * h0 + p11 * h1 + p12 * h2 + x1,
+                      p20 * h0 + p21 * h1 + p22 * h2 + x2)
+        rows.append((h0, h1, h2))
+    s[:] = rows
+    return s
+
+
 class FilteredRoad:
     """ISO 8608 road of class ``cls`` as filtered white noise on [x_start, x_end] (see module doc).
 
@@ -83,27 +123,8 @@ class FilteredRoad:
 
     def __init__(self, rng, cls: str, x_end: float, ramp: float = 10.0, dx: float = ROAD_DX):
         self.dx, self.ramp = dx, ramp
-        o0, oc = ROAD_O0, ROAD_OC
-        # h''' = oc^2 w - (o0 + 2 oc) h'' - (2 o0 oc + oc^2) h' - o0 oc^2 h
-        A = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0],
-                      [-o0 * oc**2, -(2 * o0 * oc + oc**2), -(o0 + 2 * oc)]])
-        B = np.array([0.0, 0.0, oc**2])
-        # one-sided PSD of h' = w (white, two-sided intensity q) is q / (2 pi^2 n^2)
-        q = 2.0 * math.pi**2 * ISO_GD0[cls] * N0**2
-        # exact discretisation (van Loan): Phi and the covariance of the noise increment
-        M = np.zeros((6, 6))
-        M[:3, :3] = -A
-        M[:3, 3:] = q * np.outer(B, B)
-        M[3:, 3:] = A.T
-        E = expm(M * dx)
-        Phi = E[3:, 3:].T
-        Qd = Phi @ E[:3, 3:]
-        L = np.linalg.cholesky(0.5 * (Qd + Qd.T))
         n = int(math.ceil(x_end / dx)) + 2
-        xi = rng.standard_normal((n, 3)) @ L.T
-        s = np.zeros((n, 3))
-        for k in range(1, n):
-            s[k] = Phi @ s[k - 1] + xi[k]
+        s = filtered_noise(rng, cls, n, dx)
         self.state = s  # h, h', h'' at x = k dx (exact samples of the filtered noise)
         self.n = n
         # between the samples: the interpolating spline of degree 7 (C6, so the integrator's
