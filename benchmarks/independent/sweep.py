@@ -52,8 +52,8 @@ SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "paramet
               "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")}
 NOISE = {"vehicle": ("force_noise",), "attitude": ("gyro_noise", "accel_noise")}
 #: sizing of the committed sweep (fits ~35 min of one core for 200 vehicle + 100 attitude runs)
-SIZING = {"vehicle": {"durations": (10.0, 20.0), "rates": (200, 250, 300, 500, 600, 1000, 2000),
-                      "max_samples": 6000},
+SIZING = {"vehicle": {"durations": (10.0, 40.0), "rates": (200, 250, 300, 500, 600, 1000, 1200, 2000),
+                      "max_samples": 10000},
           "attitude": {"durations": (30.0, 150.0), "rates": (100, 200, 250, 400, 500, 1000),
                        "max_samples": 60000}}
 
@@ -225,6 +225,12 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
         "cpu_s": {"total": round(sum(cpu), 1), "mean": round(sum(cpu) / max(len(cpu), 1), 2),
                   "max": round(max(cpu, default=0.0), 1)},
         "misses": misses,
+        "per_run": [{"index": r["index"], "stratum": r["stratum"],
+                     "truth": [label(target(e)) for e in r.get("effects", [])],
+                     "first_three": [label(target(f)) for f in r.get("findings", [])[:3]],
+                     "right": r.get("score", {}).get("right"), "false_alarm": r.get("score", {}).get("false_alarm"),
+                     "all_covered": r.get("score", {}).get("all_covered"), "error": r.get("error"),
+                     "cpu_s": round(r.get("gen_cpu_s", 0) + r.get("diag_cpu_s", 0), 2)} for r in results],
     }
 
 
@@ -284,8 +290,9 @@ def _commit():
     import subprocess
 
     try:
-        return subprocess.run(["git", "-C", str(HERE), "rev-parse", "--short", "HEAD"], capture_output=True,
-                              text=True, timeout=10).stdout.strip() or "?"
+        # the last commit that changed the library: the diagnosis code that was measured
+        return subprocess.run(["git", "-C", str(HERE), "log", "-1", "--format=%h", "--", "../../jaxdrift"],
+                              capture_output=True, text=True, timeout=10).stdout.strip() or "?"
     except Exception:  # noqa: BLE001
         return "?"
 
