@@ -1,9 +1,10 @@
 """Diagnosis of a measured vehicle run: residuals, cause candidates, model extension, report.
 
 Modules, in the order the diagnosis runs them: ``_residuals`` (the residual pipeline, on the exact
-discretisation of ``_discretise``), ``_detectors`` (noise on forces and motion), ``_causes`` (the
-candidates as parameters), ``_problem`` (weighted residual, noise response, fit), ``_select``
-(which causes), ``_extend`` (re-simulation of the extended model), ``_report`` and ``_plots``
+discretisation of ``_discretise``), ``_detectors`` and ``_motion_noise`` (noise on forces and on
+the measured motion), ``_causes`` (the candidates as parameters), ``_problem`` (weighted residual,
+noise response, fit), ``_select`` (which causes), ``_confirm`` (each correction must improve the
+model on the whole run and on each half), ``_extend`` (re-simulation of the extended model), ``_report`` and ``_plots``
 (the report), ``_pipeline`` (``diagnose_vehicle_run``).
 """
 

@@ -58,37 +58,52 @@ def welch_segment(n: int) -> int:
     return int(min(512, max(64, 1 << int(math.floor(math.log2(max(n, 2) / 16))))))
 
 
-def motion_noise_from_residual(r: np.ndarray, r_motion: np.ndarray, r_force: np.ndarray,
-                               fs: float, known=None) -> tuple[float, float]:
-    """White sensor noise on a measured motion [per sample] and white force noise [N] that
-    together explain the top band of a residual channel.
+def transfer_psd(x_in: np.ndarray, y_out: np.ndarray, fs: float, nperseg: int) -> np.ndarray:
+    """PSD the linear map ``x_in -> y_out`` gives unit white noise, |H|^2 * 2/fs, with H the Welch
+    estimate Pxy/Pxx on the same segments as ``_welch`` (smooth: y_out is an exact response to
+    x_in, so H carries no noise of its own, unlike the PSD of one noisy realisation)."""
+    k = len(x_in) // 20
+    x, y = x_in[k:len(x_in) - k], y_out[k:len(y_out) - k]
+    _, Pxy = scipy.signal.csd(x, y, fs=fs, nperseg=nperseg, detrend="linear")
+    _, Pxx = scipy.signal.welch(x, fs=fs, nperseg=nperseg, detrend="linear")
+    return np.abs(Pxy / np.maximum(Pxx, 1e-300)) ** 2 * (2.0 / fs)
 
-    ``r``: the residual channel of the model; ``r_motion``, ``r_force``: the same channel's
-    response to unit white noise on the motion it differentiates and on both forces (computed by
-    the pipeline itself, so the shapes include its interpolation and differentiation). In the top
-    band (``TOP_BAND`` of fs) white sensor noise grows like (2 pi f)^4 in the enforced moment and
-    heave (like (2 pi f)^2 in the spring channels) while the road-driven motion the model predicts
-    and the force noise passed by the model fall off: the residual's PSD there is fitted as
-    ``s_m^2 P_motion + s_f^2 P_force`` by non-negative least squares in relative terms.
-    ``known``: PSD (same Welch grid) already attributed to other noise, taken out first.
+
+def noise_fit(P: np.ndarray, G: np.ndarray, F: np.ndarray, band: np.ndarray, n_seg: int,
+              known=None) -> tuple[float, float, float]:
+    """White sensor noise on a measured motion [per sample] and white force noise [N] that
+    together explain the top band of a residual channel, and the z-score of the motion term.
+
+    ``P``: Welch PSD of the residual channel of the model; ``G``, ``F``: the PSD the channel gets
+    from unit white noise on the motion it differentiates and on both forces (the pipeline's own
+    transfer functions, so they include its interpolation and differentiation); ``band``: the bins
+    of the top band (``TOP_BAND`` of fs). There white sensor noise grows like (2 pi f)^4 in the
+    enforced moment and heave (like (2 pi f)^2 in the spring channels) while the road-driven
+    motion the model predicts and the force noise passed by the model fall off: P is fitted as
+    ``s_m^2 G + s_f^2 F`` by non-negative least squares in relative terms. ``known``: PSD already
+    attributed (other noise, the pipeline's floor), taken out first. The z-score uses the Welch
+    bins' relative variance 2/dof, dof about 1.8 per segment (Hann, half overlap), doubled for the
+    correlation of neighbouring bins.
 
     This replaces a test on the motion alone (its 4th against its 8th differences), which read
     rough-road motion whose 4th difference is white (a road spectrum reaching the Nyquist
     frequency) as sensor noise: 3e-5 m on spring travel written with 9 digits."""
-    nper = welch_segment(len(r))
-    f, P = _welch(r, fs, nper)
-    _, G = _welch(r_motion, fs, nper)
-    _, F = _welch(r_force, fs, nper)
-    band = (f >= TOP_BAND[0] * fs) & (f <= TOP_BAND[1] * fs)
-    if np.count_nonzero(band) < 4:
-        return 0.0, 0.0
+    nb = int(np.count_nonzero(band))
+    if nb < 4:
+        return 0.0, 0.0, 0.0
     w = 1.0 / np.maximum(P[band], 1e-300)
     A = np.column_stack([G[band] * w, F[band] * w])
-    y = np.ones(np.count_nonzero(band))
-    if known is not None:
-        y = np.maximum(1.0 - known[band] * w, 0.0)
+    y = np.ones(nb) if known is None else np.maximum(1.0 - known[band] * w, 0.0)
     coef, _ = scipy.optimize.nnls(A, y)
-    return math.sqrt(coef[0]), math.sqrt(coef[1])
+    cov = 2.0 * 2.0 / (1.8 * max(n_seg, 1)) * np.linalg.pinv(A.T @ A)
+    z = coef[0] / math.sqrt(cov[0, 0]) if cov[0, 0] > 0 else 0.0
+    return math.sqrt(coef[0]), math.sqrt(coef[1]), float(z)
+
+
+def welch_segments(n: int, nperseg: int) -> int:
+    """Number of half-overlapping segments ``_welch`` uses on n samples."""
+    m = n - 2 * (n // 20)
+    return max((m - nperseg) // (nperseg // 2) + 1, 1)
 
 
 def written_noise_sigma(x: np.ndarray) -> float:

@@ -22,7 +22,8 @@ import numpy as np
 
 from ...io._csvio import VehicleRun
 from ._causes import FORCE_CHANNELS
-from ._detectors import MOTION_COLUMN, TOP_BAND, _welch, motion_noise_from_residual, welch_segment, written_noise_sigma
+from ._detectors import (MOTION_COLUMN, TOP_BAND, _welch, noise_fit, transfer_psd, welch_segment, welch_segments,
+                         written_noise_sigma)
 from ._residuals import ResidualPipeline
 
 #: share of the residual's top-band power the sensor-noise term must explain before the noise
@@ -32,6 +33,10 @@ MOTION_NOISE_MIN_SHARE = 0.5
 #: where the pipeline's floor is measured (spring channels), noise this many times the level the
 #: floor alone reads as counts as found whatever its share of the top band (force noise may dominate)
 FLOOR_FACTOR = 3.0
+
+#: the motion term must also stand out of the Welch estimate's own scatter by this many standard
+#: errors (on clean runs with 20 N of force noise the fit gives it 10 % of the top band by chance)
+MOTION_NOISE_MIN_Z = 4.0
 
 _ZERO = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
 
@@ -73,14 +78,18 @@ def measure_motion_noise(prob) -> tuple[dict, dict]:
         return out, {}
     rng = np.random.default_rng(20260)  # the probes: a fixed function of the run, not of a seed
     r0 = pipe.residuals(model, _ZERO).channels
-    wf = {ch: rng.standard_normal(n) for ch in FORCE_CHANNELS}
-    rf = pipe.residuals(model, None, linear_part_only=True, forces=wf).channels
     fs = 1.0 / pipe.h
-    resp = {}  # (column, channel) -> the channel's response to unit white noise on the column
+    wf = {ch: rng.standard_normal(n) for ch in FORCE_CHANNELS}
+    rf = {}  # force channel -> residual channels' response to unit white noise on it alone
+    for ch in FORCE_CHANNELS:
+        one = {c: (wf[c] if c == ch else np.zeros(n)) for c in FORCE_CHANNELS}
+        rf[ch] = pipe.residuals(model, None, linear_part_only=True, forces=one).channels
+    resp, probes = {}, {}  # (column, channel) -> response to unit white noise on the column
     for nm in names:
         col = MOTION_COLUMN[nm]
         amp = max(1e-4 * float(np.std(run[col])), 1e-12)
-        r2 = ResidualPipeline(_with(run, {col: run[col] + amp * rng.standard_normal(n)})).residuals(model, _ZERO)
+        probes[col] = rng.standard_normal(n)
+        r2 = ResidualPipeline(_with(run, {col: run[col] + amp * probes[col]})).residuals(model, _ZERO)
         for nm2 in names:
             resp[(col, nm2)] = (r2.channels[nm2] - r0[nm2]) / amp
     floor = {}
@@ -90,6 +99,12 @@ def measure_motion_noise(prob) -> tuple[dict, dict]:
         r3 = ResidualPipeline(_with(run, {MOTION_COLUMN[nm]: sim[MOTION_COLUMN[nm]] for nm in springs}))
         r3 = r3.residuals(model, _ZERO).channels
         floor = {nm: r3[nm] for nm in springs}
+
+    def shape(x_in, y_out, nm, rows, nper):
+        # channel rows k are samples k + offset: align the input with them
+        off = prob.offset[nm]
+        return transfer_psd(x_in[off:off + rows], y_out[:rows], fs, nper)
+
     # the enforced moment and heave first (each dominated by its own column's noise, growing as
     # f^4); then the spring channels, with the pitch and heave noise found and the floor taken out
     for nm in names:
@@ -98,18 +113,21 @@ def measure_motion_noise(prob) -> tuple[dict, dict]:
         nper = welch_segment(rows)
         f, P = _welch(r0[nm][:rows], fs, nper)
         band = (f >= TOP_BAND[0] * fs) & (f <= TOP_BAND[1] * fs)
+        G = shape(probes[col], resp[(col, nm)], nm, rows, nper)
+        F = sum(shape(wf[ch], rf[ch][nm], nm, rows, nper) for ch in FORCE_CHANNELS)
         known = np.zeros_like(P)
         for col2, v in out.items():
             if (col2, nm) in resp and v["sigma"] > 0:
-                known += v["sigma"] ** 2 * _welch(resp[(col2, nm)][:rows], fs, nper)[1]
+                known += v["sigma"] ** 2 * shape(probes[col2], resp[(col2, nm)], nm, rows, nper)
         fl = 0.0
+        n_seg = welch_segments(rows, nper)
         if nm in floor:
-            known += _welch(floor[nm][:rows], fs, nper)[1]
-            fl, _ = motion_noise_from_residual(floor[nm][:rows], resp[(col, nm)][:rows], rf[nm][:rows], fs)
-        est, _ = motion_noise_from_residual(r0[nm][:rows], resp[(col, nm)][:rows], rf[nm][:rows], fs, known=known)
-        _, G = _welch(resp[(col, nm)][:rows], fs, nper)
+            Pf = _welch(floor[nm][:rows], fs, nper)[1]
+            known += Pf
+            fl = noise_fit(Pf, G, F, band, n_seg)[0]
+        est, _, z = noise_fit(P, G, F, band, n_seg, known=known)
         share = float(est ** 2 * np.sum(G[band]) / max(np.sum(P[band]), 1e-300))
-        found = share >= MOTION_NOISE_MIN_SHARE or (fl > 0 and est >= FLOOR_FACTOR * fl)
-        out[col] = {"sigma": est if found else 0.0, "estimate": est,
+        found = z >= MOTION_NOISE_MIN_Z and (share >= MOTION_NOISE_MIN_SHARE or (fl > 0 and est >= FLOOR_FACTOR * fl))
+        out[col] = {"sigma": est if found else 0.0, "estimate": est, "z": z,
                     "share": share, "written": written_noise_sigma(run[col]), "floor": fl}
     return out, resp

@@ -111,6 +111,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             sel.fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
             prob.impulse_responses(p_ext)[0])
         lo, hi = _chi2_sigma_interval(sigma, dof)
+        found = sigma > NOISE_MIN_N  # decided on the low band, before a smaller bound replaces it
         fc = lowband_cutoff(1.0 / run.dt)
         src = (f"below {fc:.3g} Hz, inside the model's bandwidth, the residual left after the "
                f"fit has the power that white force noise of {sigma:.3g} N would give it "
@@ -128,12 +129,13 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             sigma = hf
     else:
         sigma, lo, hi = _force_hf_noise(run)
+        found = sigma > NOISE_MIN_N
         src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "
                f"forces give {sigma:.3g} N, an upper bound (the forces' own content near the "
                f"Nyquist frequency counts as noise here)")
         notes.append("The run has neither beta, z3 nor s1/s2: only the static load and the force "
                      "noise can be checked.")
-    return {"sigma": sigma, "lo": lo, "hi": hi, "found": sigma > NOISE_MIN_N, "source": src,
+    return {"sigma": sigma, "lo": lo, "hi": hi, "found": found, "source": src,
             "notes": notes}
 
 
