@@ -104,17 +104,20 @@ class _Problem:
             self._ir_cache.clear()
             self.ir, self.noise_std = self.impulse_responses(self.model)
 
-    def _lowband_channels(self) -> list[str]:
-        """The channels the force noise is measured on: those whose own measured motion shows no
-        sensor noise, where there are any. Sensor noise is white only where the motion moves many
-        units of the last written digit per sample; a slow signal written with few digits carries a
-        staircase whose low band holds more than the top band's white level says (measured: z3
-        written with 6 digits, 500 Hz, put 4x the force noise's power into the heave channel's low
-        band), so channels with noise found are used only when no other is left."""
-        dyn = [nm for nm in self.names if nm != "static"]
-        clean = [nm for nm in dyn if nm not in MOTION_COLUMN
-                 or self.motion_noise.get(MOTION_COLUMN[nm], {}).get("sigma", 0.0) <= 0]
-        return clean or dyn
+    #: a channel whose low band holds more than this share of sensor noise (as found on the
+    #: measured motion) is left out of the force-noise estimate where others are left
+    MOTION_LOWBAND_SHARE = 0.25
+
+    def _lowband_channels(self, parts: dict) -> list[str]:
+        """The channels the force noise is measured on: those whose low band holds at most
+        ``MOTION_LOWBAND_SHARE`` of sensor noise, where there are any. The found noise's low-band
+        power is subtracted, but it is an estimate from the top band: sensor noise is white only
+        where the motion moves many units of the last written digit per sample, and a slow signal
+        written with few digits is a staircase whose low band holds more (measured: z3 written
+        with 6 digits, 500 Hz, put 4x the force noise's power into the heave channel's low band
+        where the white level predicted half of what was there)."""
+        ok = [nm for nm, (xl, pw) in parts.items() if pw <= self.MOTION_LOWBAND_SHARE * float(np.mean(xl * xl))]
+        return ok or list(parts)
 
     def _motion_lowband_power(self, nm: str, sos, k: slice) -> float:
         """Mean power per row that the sensor noise found on the measured motion puts into the
@@ -258,11 +261,17 @@ class _Problem:
         blocks = self._blocks(r[:, None])
         num = den = 0.0
         hls, lens = {}, {}
-        for nm in self._lowband_channels():
+        parts = {}
+        for nm in self.names:
+            if nm == "static":
+                continue
             x = blocks[nm][:, 0]
             L = len(x)
             k = slice(L // 20, L - L // 20)
             xl = scipy.signal.sosfiltfilt(sos, x)[k]
+            parts[nm] = (xl, self._motion_lowband_power(nm, sos, k))
+        for nm in self._lowband_channels(parts):
+            xl, motion_pw = parts[nm]
             unit = 0.0
             for ch in FORCE_CHANNELS:
                 h = ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
@@ -270,7 +279,7 @@ class _Problem:
                 hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
                 unit += float(np.sum(hls[(nm, ch)] ** 2))
             lens[nm] = len(xl)
-            num += float(np.sum(xl * xl)) - self._motion_lowband_power(nm, sos, k) * len(xl)
+            num += float(np.sum(xl * xl)) - motion_pw * len(xl)
             den += unit * len(xl)
         # Var(sum_a sum_t x_a(t)^2) = 2 sigma^4 sum_{a,b} sum_{t,t'} c_ab(t - t')^2, with c_ab the
         # cross-covariance of residual channels a and b: they see the same force noise, so the
