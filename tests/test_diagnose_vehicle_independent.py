@@ -142,3 +142,25 @@ def test_evidence_sentences_cite_the_report_numbers():
     _check_evidence(rep)
     em = rep["simulation_error"]["enforced_moment"]
     assert em["band_hz"] == [0.0, 250.0]
+
+
+def test_a_correction_that_makes_the_simulated_pitch_worse_stays_out():
+    """FIELD-NOTES: a spurious inertia x0.55 next to a right finding made the extended model's
+    force-driven pitch error 12x worse. Given such a selection (the true 80 N offset on f1 and a
+    spurious I x 0.55), the re-simulation check drops the inertia and keeps the offset."""
+    from jaxdrift.diagnosis.vehicle._causes import Cause
+    from jaxdrift.diagnosis.vehicle._confirm import confirm_by_resimulation
+    from jaxdrift.diagnosis.vehicle._problem import _gauss_newton
+    from jaxdrift.diagnosis.vehicle._select import Selection
+
+    cols = _make(4404, effects=[{"cause": "force_offset", "channel": "f1", "value": 80.0}])
+    prob = _Problem(ResidualPipeline(_run(cols, 9)), VAN)
+    causes = [Cause("force_offset", "f1"), Cause("parameter_error", "I")]
+    fit = _gauss_newton(prob, causes, np.array([80.0, -0.45]), iters=0)
+    sel = Selection(fit, np.eye(2), 1.0, np.array([10.0, 5.0]), {}, [], {}, fit.rss, [fit.rss])
+    new, dropped = confirm_by_resimulation(prob, sel)
+    assert [c.label for c, *_ in dropped] == ["parameter_error[I]"]
+    _, _, before, after, without = dropped[0]
+    assert without < 0.9 * after
+    assert [c.label for c in new.fit.causes] == ["force_offset[f1]"]
+    assert abs(new.fit.theta[0] - 80.0) < 2.0

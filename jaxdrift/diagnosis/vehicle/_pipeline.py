@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ._causes import FORCE_CHANNELS, _apply
-from ._confirm import confirm_corrections
+from ._confirm import confirm_by_resimulation, confirm_corrections
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
 from ._problem import _Problem
@@ -27,6 +27,9 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     prob = _Problem(pipe, model)
     sel = _select(prob, log=log)
     sel, held_out = confirm_corrections(prob, sel, log)
+    resim_out = []
+    if with_simulation:
+        sel, resim_out = confirm_by_resimulation(prob, sel, log)
     fit = sel.fit
     dynamic = len(fit.r) > 2
 
@@ -63,6 +66,10 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                      f"improve the {imp['channel']} residual on the whole run and on each half (RMS "
                      f"{imp['without']:.4g} -> {imp['with']:.4g}, first half {a1:.4g} -> {b1:.4g}, second half "
                      f"{a2:.4g} -> {b2:.4g}).")
+    for c, est, before, after, without in resim_out:
+        notes.append(f"Left out of the extended model: {c.label} = {est:.5g}; with it the force-driven "
+                     f"pitch RMS error was {after:.4g} rad against {before:.4g} rad for the model "
+                     f"({without:.4g} rad without it).")
 
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
