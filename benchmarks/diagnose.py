@@ -28,7 +28,7 @@ def main() -> None:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+    from jaxdrift.diagnosis.vehicle import diagnose_vehicle_run
     from jaxdrift.studies import _rungen as rg
     from jaxdrift.io._csvio import DEFAULT_MODEL, read_vehicle_run, write_vehicle_run
 
@@ -46,13 +46,13 @@ def main() -> None:
         run = read_vehicle_run(path)
         t_read = time.perf_counter() - t0
     t0 = time.perf_counter()
-    rep_fast = dv.diagnose_vehicle_run(run, DEFAULT_MODEL, with_simulation=False)
+    rep_fast = diagnose_vehicle_run(run, DEFAULT_MODEL, with_simulation=False)
     t_select = time.perf_counter() - t0
     t0 = time.perf_counter()
-    rep = dv.diagnose_vehicle_run(run, DEFAULT_MODEL)
+    rep = diagnose_vehicle_run(run, DEFAULT_MODEL)
     t_full_cold = time.perf_counter() - t0
     t0 = time.perf_counter()
-    dv.diagnose_vehicle_run(run, DEFAULT_MODEL)
+    diagnose_vehicle_run(run, DEFAULT_MODEL)
     t_full_warm = time.perf_counter() - t0
 
     result = {

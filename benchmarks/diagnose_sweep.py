@@ -52,7 +52,7 @@ def main(argv=None):
     ap.add_argument("--json", help="write the counts to this JSON file")
     a = ap.parse_args(argv)
 
-    from jaxdrift.diagnosis.vehicle import _diagnose as dv
+    from jaxdrift.diagnosis.vehicle import diagnose_vehicle_run
     from jaxdrift.studies import _rungen as rg
     from jaxdrift.io._csvio import DEFAULT_MODEL, VehicleRun
 
@@ -78,7 +78,7 @@ def main(argv=None):
                     cols[c] = np.asarray(cols[c]) + (10.0 if c == "beta_rate" else 1.0) * level * \
                         mrng.standard_normal(len(cols["t"]))
         run = VehicleRun("run.csv", cols["t"], {c: np.asarray(v) for c, v in cols.items() if c != "t"})
-        rep = dv.diagnose_vehicle_run(run, model, with_simulation=False)
+        rep = diagnose_vehicle_run(run, model, with_simulation=False)
         sc = score_report(rep, effects)
         first_ok += sc["first"]
         covered += sc["covered"]

@@ -63,7 +63,7 @@ def main(argv=None):
     # warm: the Monte-Carlo part alone, compiled already by the run above
     res = section_forces(run.t, run["f1"], run["f2"], DEFAULT_MODEL, beta=run["beta"],
                          extended=rep["provenance"]["extended_model"])
-    from jaxdrift.diagnosis.vehicle._diagnose import diagnose_vehicle_run
+    from jaxdrift.diagnosis.vehicle._pipeline import diagnose_vehicle_run
 
     t0 = time.perf_counter()
     diagnose_vehicle_run(run, DEFAULT_MODEL)

@@ -109,7 +109,7 @@ _EXPORTS.update({
     "write_vehicle_run": ("io._csvio", "write_vehicle_run"),
     "load_run": ("io._runs", "load_run"),
     "AttitudeRun": ("io._runs", "AttitudeRun"),
-    "diagnose_vehicle_run": ("diagnosis.vehicle._diagnose", "diagnose_vehicle_run"),
+    "diagnose_vehicle_run": ("diagnosis.vehicle._pipeline", "diagnose_vehicle_run"),
 })
 
 # --- attitude (#6) ---
@@ -234,7 +234,7 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .io._csvio import read_vehicle_run
     from .io._csvio import write_vehicle_run
     from .io._runs import AttitudeRun, load_run
-    from .diagnosis.vehicle._diagnose import diagnose_vehicle_run
+    from .diagnosis.vehicle._pipeline import diagnose_vehicle_run
     from .models._accel_array import check_positions
     from .models._accel_array import consistency_residual
     from .models._accel_array import reconstruct as reconstruct_from_accelerometers

@@ -139,7 +139,8 @@ def _equilibrium(p):
 
 
 def make_run(true_params, *, duration=20.0, fs=500.0, speed=15.0, road_class="B", hills=True,
-             seed=0, effects=(), noise_sigma=0.0, channels=("beta", "z3", "s1", "s2")):
+             seed=0, effects=(), noise_sigma=0.0, channels=("beta", "z3", "s1", "s2"), road_n_max=2.5,
+             road_waves=60):
     """Simulate a true run with scipy and apply the sensor effects.
 
     ``true_params``: dict of the seed's keys (the *true* vehicle). ``effects``: list of dicts
@@ -149,7 +150,7 @@ def make_run(true_params, *, duration=20.0, fs=500.0, speed=15.0, road_class="B"
     """
     p = dict(true_params)
     rng = np.random.default_rng(seed)
-    road = ScipyRoad(rng, road_class=road_class, hills=hills)
+    road = ScipyRoad(rng, road_class=road_class, hills=hills, n_max=road_n_max, n_waves=road_waves)
     n = int(round(duration * fs)) + 1
     t = np.arange(n) / fs
     y0 = _equilibrium(p)

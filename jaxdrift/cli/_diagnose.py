@@ -137,7 +137,7 @@ def run_diagnose(args) -> int:
         model_desc = ({"file": os.path.basename(args.model)} if args.model else {"default": DEFAULT_MODEL_LABEL})
         model_desc["parameters"] = model
         try:
-            from ..diagnosis.vehicle._diagnose import diagnose_vehicle_run
+            from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
 
             log = _BarLog(bar)
             if args.plots:

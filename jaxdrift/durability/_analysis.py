@@ -280,7 +280,7 @@ def durability_analysis(run: VehicleRun, model=None, *, paths: int = 64, basquin
     p = _params_dict(model)
     started = datetime.datetime.now(datetime.timezone.utc)
     if report is None:
-        from ..diagnosis.vehicle._diagnose import diagnose_vehicle_run
+        from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
 
         report = diagnose_vehicle_run(run, p)
     extended = report.get("extended_model") if report else None

@@ -1,0 +1,97 @@
+"""``diagnose_vehicle_run``: residuals, causes, extended model, gain, report."""
+
+from __future__ import annotations
+
+from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
+from ._causes import FORCE_CHANNELS, _apply
+from ._confirm import confirm_by_resimulation, confirm_corrections
+from ._extend import resimulate
+from ._plots import write_vehicle_plots
+from ._problem import _Problem
+from ._report import (SCHEMA, cause_findings, enforced_terms, identifiability_notes, noise_level,
+                      residual_gain, static_findings)
+from ._residuals import ResidualPipeline
+from ._select import _select
+
+
+def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=None,
+                         *, with_simulation: bool = True, log: list | None = None) -> dict:
+    """Diagnose a vehicle run against a model; returns the report (``docs/measured-data.md``).
+
+    ``model``: dict of the seed's keys (default: the seed's table). ``plots_dir``: write the
+    figures there. ``with_simulation``: run the force-driven simulation for the pitch error
+    (the slowest part; tests of the cause logic may skip it).
+    """
+    model = dict(DEFAULT_MODEL if model is None else model)
+    pipe = ResidualPipeline(run)
+    prob = _Problem(pipe, model)
+    sel = _select(prob, log=log)
+    sel, held_out = confirm_corrections(prob, sel, log)
+    resim_out = []
+    if with_simulation:
+        sel, resim_out = confirm_by_resimulation(prob, sel, log)
+    fit = sel.fit
+    dynamic = len(fit.r) > 2
+
+    # residuals before / after (physical units)
+    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+    res0 = pipe.residuals(model, zero)
+    p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
+    res1 = pipe.residuals(p_ext, corr_ext)
+
+    noise = noise_level(prob, sel, corr_ext, p_ext)
+    sigma = noise["sigma"]
+    notes = list(noise["notes"])
+
+    # findings
+    corrections = {ch: {"offset": float(corr_ext[ch]["offset"]),
+                        "scale": float(1.0 / (1.0 + corr_ext[ch]["kappa"])),
+                        "delay": float(corr_ext[ch]["delay"])} for ch in FORCE_CHANNELS}
+    findings = cause_findings(prob, sel, model, res1, sigma)
+    if not dynamic and sigma > 0:
+        findings += static_findings(res0, sigma, corrections)
+    if noise["found"]:
+        src = noise["source"]
+        findings.append({"cause": "force_noise", "estimate": float(sigma), "unit": "N",
+                         "interval": [float(noise["lo"]), float(noise["hi"])],
+                         "evidence": src[0].upper() + src[1:] + "."})
+    if not findings:
+        findings.append({"cause": "none", "evidence": (
+            "no systematic cause passes the test and " + noise["source"] +
+            ", indistinguishable from the numerical floor of the comparison.")})
+    notes += identifiability_notes(prob, sel)
+    for c, est, imp in held_out:
+        (a1, b1), (a2, b2) = imp["halves"]
+        notes.append(f"Left out of the extended model: {c.label} = {est:.5g} passed the test but does not "
+                     f"improve the {imp['channel']} residual on the whole run and on each half (RMS "
+                     f"{imp['without']:.4g} -> {imp['with']:.4g}, first half {a1:.4g} -> {b1:.4g}, second half "
+                     f"{a2:.4g} -> {b2:.4g}).")
+    for c, est, before, after, without in resim_out:
+        notes.append(f"Left out of the extended model: {c.label} = {est:.5g}; with it the force-driven "
+                     f"pitch RMS error was {after:.4g} rad against {before:.4g} rad for the model "
+                     f"({without:.4g} rad without it).")
+
+    # extended model and gain
+    params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
+    gain = residual_gain(prob, res0, res1, bool(fit.causes), corrections, dynamic)
+    sim_err = enforced_terms(prob, model, res0)
+    sims = {}
+    if with_simulation and (run.has("beta") or run.has("z3")):
+        sims = resimulate(pipe, model, p_ext, corr_ext, sigma, sim_err, gain)
+
+    report = {
+        "schema": SCHEMA,
+        "kind": "vehicle",
+        "simulation_error": sim_err,
+        "findings": findings,
+        "extended_model": {"parameters": params_ext, "corrections": corrections},
+        "gain": gain,
+        "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
+                "duration_s": float(run.t[-1] - run.t[0]),
+                "channels": sorted(run.channels), "residual_channels": prob.names},
+        "notes": notes,
+    }
+    if plots_dir is not None:
+        write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, sims,
+                            sigma, report)
+    return report

@@ -1,0 +1,283 @@
+"""Report pieces: intervals, evidence sentences, the channel where a correction shows most."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.stats
+
+from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical
+from ._detectors import MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff
+from ._problem import _Problem
+from ._residuals import Residuals
+
+SCHEMA = "jaxdrift.diagnosis/1"
+
+
+
+def _rms(x) -> float:
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def _chi2_sigma_interval(sigma: float, dof: float) -> tuple[float, float]:
+    lo = sigma * math.sqrt(dof / scipy.stats.chi2.ppf(0.975, dof))
+    hi = sigma * math.sqrt(dof / scipy.stats.chi2.ppf(0.025, dof))
+    return lo, hi
+
+
+
+def evidence_sentence(c: Cause, est: float, ch: str, rms_without: float, rms_with: float, z: float,
+                      sigma: float, cutoff_hz: float | None = None) -> str:
+    """The evidence sentence, written from the numbers it cites (the finding carries the same
+    numbers in ``residual``, ``z`` and the ``force_noise`` finding): the verb follows the numbers."""
+    verb = "falls" if rms_with < rms_without else "rises"
+    band = f" (compared below {cutoff_hz:.3g} Hz)" if cutoff_hz is not None else ""
+    return (f"{_describe(c, est)} explains the {_CHANNEL_WORDS[ch]}{band}: its RMS {verb} from "
+            f"{rms_without:.4g} to {rms_with:.4g} {_CHANNEL_UNITS[ch]} when it is corrected "
+            f"(z = {z:.1f}, noise level {sigma:.3g} N)")
+
+
+def _alternatives_json(alts) -> list[dict]:
+    """``indistinguishable_from`` entries in the report's terms (an equal offset on both forces
+    is one entry per channel, as the contract names channels f1/f2)."""
+    out = []
+    for a, est, iv in alts:
+        for tgt in (FORCE_CHANNELS if a.target == "both" else (a.target,)):
+            d = {"parameter": tgt} if a.kind == "parameter_error" else {"channel": tgt}
+            d["cause"] = a.kind
+            if est is not None:
+                d["estimate"] = est
+            if iv is not None:
+                d["interval"] = [float(iv[0]), float(iv[1])]
+            out.append(d)
+    return out
+
+
+def _describe(c: Cause, est: float) -> str:
+    if c.kind == "force_offset":
+        where = "both forces" if c.target == "both" else c.target
+        return f"an offset of {est:+.4g} N on {where}"
+    if c.kind == "force_scale":
+        return f"a scale of {est:.5g} on {c.target}"
+    if c.kind == "force_delay":
+        return f"a delay of {est * 1e3:+.4g} ms on {c.target}"
+    return f"{c.target} = {est:.5g} x the model value"
+
+
+_CHANNEL_WORDS = {"moment": "enforced moment", "heave": "vertical enforced force",
+                  "spring1": "front spring force residual", "spring2": "rear spring force residual",
+                  "tyre1": "front tyre force residual", "tyre2": "rear tyre force residual",
+                  "static": "static load at the first sample"}
+_CHANNEL_UNITS = {"moment": "N m", "heave": "N", "spring1": "N", "spring2": "N", "tyre1": "N", "tyre2": "N",
+                  "static": "N"}
+
+
+def _telling_channel(prob: "_Problem", before: "Residuals", after: "Residuals", default: str) -> str:
+    """The residual channel where a correction shows most: the largest drop of the residual sum of
+    squares in units of the channel's noise (the enforced moment when nothing drops clearly)."""
+    best, best_drop = default, 0.0
+    for nm in prob.names:
+        if nm == "static":
+            continue
+        rows = prob.rows[nm]
+        a = before.channels[nm][:rows] / prob.noise_std[nm]
+        b = after.channels[nm][:rows] / prob.noise_std[nm]
+        drop = float(a @ a - b @ b)
+        if drop > best_drop * 1.5 or (best == default and drop > best_drop):
+            best, best_drop = nm, drop
+    return best
+
+
+
+def _kept(prob: "_Problem", res: "Residuals", nm: str) -> np.ndarray:
+    """The rows of channel ``nm`` the comparison uses (the record's end left out)."""
+    return res.channels[nm][:prob.rows[nm]]
+
+
+def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
+    """The force-noise level with its 95 % interval and the sentence saying where it comes from.
+
+    Runs with a residual to compare: the low band of the residual left after the fit (see
+    ``_Problem.lowband_noise``), or the forces' 4th differences where they give less (sensor noise
+    on the measured motion left in the band reads as force noise in the residual). Forces only:
+    the 4th differences, an upper bound."""
+    run = prob.pipe.run
+    dynamic = len(sel.fit.r) > 2
+    notes = []
+    if dynamic:
+        sigma, dof = prob.lowband_noise(
+            sel.fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
+            prob.impulse_responses(p_ext)[0])
+        lo, hi = _chi2_sigma_interval(sigma, dof)
+        found = sigma > NOISE_MIN_N  # decided on the low band, before a smaller bound replaces it
+        fc = lowband_cutoff(1.0 / run.dt)
+        src = (f"below {fc:.3g} Hz, inside the model's bandwidth, the residual left after the "
+               f"fit has the power that white force noise of {sigma:.3g} N would give it "
+               f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
+               f"to {sel.sigma:.3g} N including the comparison's own discretisation error)")
+        hf, hf_lo, hf_hi = _force_hf_noise(run)
+        if prob.pipe.band and hf < sigma:
+            # Sensor noise on the measured motion left in the band adds to the residual's low band
+            # and reads as force noise; the forces' own 4th differences do not see it. Both are
+            # upper bounds: the smaller one is reported.
+            lo, hi = hf_lo, hf_hi
+            src = (f"the 4th differences of the forces give {hf:.3g} N; the residual's low band, "
+                   f"which here also holds the sensor noise of the measured motion, gives "
+                   f"{sigma:.3g} N; the smaller of these two upper bounds is reported")
+            sigma = hf
+    else:
+        sigma, lo, hi = _force_hf_noise(run)
+        found = sigma > NOISE_MIN_N
+        src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "
+               f"forces give {sigma:.3g} N, an upper bound (the forces' own content near the "
+               f"Nyquist frequency counts as noise here)")
+        notes.append("The run has neither beta, z3 nor s1/s2: only the static load and the force "
+                     "noise can be checked.")
+    return {"sigma": sigma, "lo": lo, "hi": hi, "found": found, "source": src,
+            "notes": notes}
+
+
+def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma: float) -> list[dict]:
+    """One finding per chosen cause (an equal offset on both forces: one per channel), with the
+    evidence sentence: the RMS of the channel where the cause shows most, without the cause and
+    with it (the other causes kept)."""
+    pipe = prob.pipe
+    fit = sel.fit
+    dynamic = len(fit.r) > 2
+    names = prob.names
+    main = "moment" if "moment" in names else next((nm for nm in names if nm != "static"), "static")
+    se = np.sqrt(np.maximum(np.diag(sel.cov), 0.0)) if len(fit.causes) else np.zeros(0)
+    findings = []
+    for i, c in enumerate(fit.causes):
+        est = c.to_estimate(fit.theta[i])
+        others = [j for j in range(len(fit.causes)) if j != i]
+        p_o, corr_o = _apply(model, [fit.causes[j] for j in others], fit.theta[others])
+        r_without = pipe.residuals(p_o, corr_o)
+        ch_i = _telling_channel(prob, r_without, res1, main) if dynamic else main
+        a_rms = _rms(_kept(prob, r_without, ch_i))
+        b_rms = _rms(_kept(prob, res1, ch_i))
+        ev = evidence_sentence(c, est, ch_i, a_rms, b_rms, abs(sel.z[i]), sigma, pipe.band.get(ch_i, (None,))[0])
+        alts = sel.alternatives.get(c, [])
+        if alts:
+            ev += "; the data cannot tell it from " + ", ".join(
+                _describe(a, e) if e is not None else a.label for a, e, _ in alts)
+        targets = [c.target] if not (c.kind == "force_offset" and c.target == "both") else list(FORCE_CHANNELS)
+        for tgt in targets:
+            f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i],
+                             _practical(c, pipe))
+            f["evidence"] = ev + "."
+            f["z"] = float(abs(sel.z[i]))
+            f["residual"] = {"channel": ch_i, "rms_without": float(a_rms), "rms_with": float(b_rms),
+                             "unit": _CHANNEL_UNITS[ch_i],
+                             "band_hz": [0.0, float(pipe.band[ch_i][0]) if ch_i in pipe.band else 0.5 / pipe.h]}
+            if alts:
+                f["indistinguishable_from"] = _alternatives_json(alts)
+            findings.append(f)
+    return findings
+
+
+def static_findings(res0: "Residuals", sigma: float, corrections: dict) -> list[dict]:
+    """Forces only: the static load at the first sample is all there is to check. Sets the
+    offsets of ``corrections`` in place."""
+    findings = []
+    st = res0.channels["static"]
+    for i, ch in enumerate(FORCE_CHANNELS):
+        z = float(st[i] / sigma)
+        if abs(z) > 3.5:  # two tests, well beyond the 95 % level: a static load error
+            findings.append({
+                "cause": "force_offset", "channel": ch, "estimate": float(st[i]), "unit": "N",
+                "interval": [float(st[i] - 1.96 * sigma), float(st[i] + 1.96 * sigma)],
+                "evidence": (f"at the first sample (vehicle at rest) {ch} differs from the "
+                             f"model's static load by {st[i]:+.4g} N ({abs(z):.1f} noise "
+                             f"levels); with forces alone this cannot be told from a mass or "
+                             f"lever-arm error of the model."),
+                "z": abs(z),
+                "indistinguishable_from": [{"cause": "parameter_error", "parameter": k}
+                                           for k in ("m3", "m1" if ch == "f1" else "m2", "a", "b", "g")]})
+            corrections[ch]["offset"] = float(st[i])
+    return findings
+
+
+def identifiability_notes(prob: "_Problem", sel) -> list[str]:
+    """Notes on parameters the run cannot see, sees weakly, and on band-limited channels."""
+    run = prob.pipe.run
+    notes = []
+    ni = sorted({c.target for c in sel.not_identifiable if c.kind == "parameter_error"})
+    if ni:
+        notes.append("Not identifiable from these signals (they do not enter the force-driven "
+                     "equations or the measured channels): " + ", ".join(ni) + ".")
+    weak = {k: v for k, v in sel.weakly_identifiable.items() if v > 0.02}
+    if weak:
+        notes.append("Weakly identifiable: a single error in " + ", ".join(
+            f"{k} smaller than {100 * v:.2g} %" for k, v in sorted(weak.items(), key=lambda kv: kv[1]))
+            + " would not be detected in this run" +
+            ("" if any(run.has(s) for s in ("s1", "s2")) else
+             " (spring stiffness and damping barely change the spring forces the wheels pass on; "
+             "measured spring travel s1/s2 would show them)") + ".")
+    if len(sel.fit.r) > 2 and not run.has("z3"):
+        notes.append("Without z3 a chassis-mass error, a gravity error and equal offsets on both "
+                     "forces differ only in their small dynamic signature.")
+    for name, (fc, _) in sorted(prob.pipe.band.items()):
+        col = MOTION_COLUMN[name]
+        mn = prob.motion_noise[col]
+        unit = 'rad' if col == 'beta' else 'm'
+        notes.append(f"White sensor noise on the measured {col} (about {mn['sigma']:.2g} {unit} per sample, "
+                     f"{100 * mn['share']:.0f} % of the {name} residual above {TOP_BAND[0] * 100:.0f} % of the "
+                     f"sampling rate; printing the values with their digits alone adds {mn['written']:.2g} {unit}) "
+                     f"swamps its derivatives: the {name} "
+                     f"residual is compared below {fc:.3g} Hz only, and what shows only above that "
+                     "(wheel hop, fast delays) is not seen.")
+    return notes
+
+
+def residual_gain(prob: "_Problem", res0: "Residuals", res1: "Residuals", fitted: bool,
+                  corrections: dict, dynamic: bool) -> dict:
+    """RMS of the channel where the corrections show most (the enforced moment by default), before
+    and after; forces only: the static load error."""
+    names = prob.names
+    main = "moment" if "moment" in names else next((nm for nm in names if nm != "static"), "static")
+    if dynamic and fitted:
+        main = _telling_channel(prob, res0, res1, main)
+    metric = {"moment": "enforced_moment_rms", "heave": "vertical_enforced_force_rms",
+              "spring1": "spring_force_residual_rms", "spring2": "spring_force_residual_rms",
+              "tyre1": "tyre_force_residual_rms", "tyre2": "tyre_force_residual_rms",
+              "static": "static_load_error_rms"}[main]
+    gain = {"metric": metric, "before": _rms(_kept(prob, res0, main)), "after": _rms(_kept(prob, res1, main)),
+            "unit": _CHANNEL_UNITS[main]}
+    if main in prob.pipe.band:
+        gain["band_hz"] = [0.0, float(prob.pipe.band[main][0])]
+    if not dynamic:
+        st = res0.channels["static"]
+        gain["after"] = _rms([st[i] - corrections[ch]["offset"] for i, ch in enumerate(FORCE_CHANNELS)])
+    return gain
+
+
+def enforced_terms(prob: "_Problem", model: dict, res0: "Residuals") -> dict:
+    """The enforced moment (and vertical force) of the model over the full band, with the inertia
+    term's size; where the channel is compared band-limited (sensor noise on the motion), the
+    band-limited one too, labelled with its band."""
+    pipe = prob.pipe
+    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+    full = res0
+    if pipe.band:
+        band, pipe.band = pipe.band, {}
+        try:
+            full = pipe.residuals(model, zero)
+        finally:
+            pipe.band = band
+    fs2 = 0.5 / pipe.h
+    out = {}
+    for nm, key, inertia in (("moment", "enforced_moment", lambda: model["I"] * pipe.d2beta[:prob.rows["moment"]]),
+                             ("heave", "vertical_enforced_force", lambda: model["m3"] * pipe.d2z3)):
+        if nm not in prob.names:
+            continue
+        lam = _kept(prob, full, nm)
+        out[key] = {"rms": _rms(lam), "max_abs": float(np.max(np.abs(lam))),
+                    "inertia_term_rms": _rms(inertia()), "band_hz": [0.0, fs2]}
+        if nm in pipe.band:
+            lam_b = _kept(prob, res0, nm)
+            out[key + "_band_limited"] = {"rms": _rms(lam_b), "max_abs": float(np.max(np.abs(lam_b))),
+                                          "band_hz": [0.0, float(pipe.band[nm][0])]}
+    return out
