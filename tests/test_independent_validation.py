@@ -101,15 +101,15 @@ def test_halfcar_against_jaxdrift_model():
 
 def test_integration_converged():
     """The generator's tolerance (rtol 1e-10) against a 100x tighter solve: pitch and forces agree
-    to far below 9 significant digits of their range."""
+    to below 1e-9 of their range, the 9th significant digit (measured: 5e-12 and 2e-11)."""
     c = _case("clean", [], 8, road_class="C", speed=20.0)
     p = gv.true_vehicle(c)
     road = gv.FilteredRoad(np.random.default_rng(3), "C", 80.0)
     tau = np.linspace(0, 2.0, 401)
     s1 = gv.signals(p, road, 20.0, 0.0, gv.simulate(p, road, 20.0, 0.0, 2.0), tau)
     s2 = gv.signals(p, road, 20.0, 0.0, gv.simulate(p, road, 20.0, 0.0, 2.0, rtol=1e-12, atol=1e-14), tau)
-    assert np.max(np.abs(s1["beta"] - s2["beta"])) < 1e-9 * np.ptp(s2["beta"]) * 1e3
-    assert np.max(np.abs(s1["f1"] - s2["f1"])) < 1e-6 * np.ptp(s2["f1"])
+    assert np.max(np.abs(s1["beta"] - s2["beta"])) < 1e-9 * np.ptp(s2["beta"])
+    assert np.max(np.abs(s1["f1"] - s2["f1"])) < 1e-9 * np.ptp(s2["f1"])
 
 
 # ----------------------------------------------------------------------------- contract
