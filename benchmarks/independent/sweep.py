@@ -233,9 +233,13 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
             truth = ", ".join(f"{c['target']}={_fmt(c['true'])}" for c in s["coverage"]) or "no effect"
             got = ", ".join(f"{label(target(f))}={_fmt(f.get('estimate'))}" for f in r["findings"][:3]) or "no finding"
             cs = r["case"]
-            misses.append(f"run {r['index']} [{r['stratum']}] {_where(kind, cs)}: truth {truth}; "
-                          f"reported {got}" + ("" if s.get("right", True) and not s.get("false_alarm") else
-                                               " (order)" ) + ("" if s["all_covered"] is not False else " (interval)"))
+            outside = "; ".join(
+                f"{c['target']} {_fmt(c['true'])} " + ("not reported" if c["estimate"] is None else
+                                                       f"outside [{_fmt(c['interval'][0])}, {_fmt(c['interval'][1])}]")
+                for c in s["coverage"] if not c["covered"])
+            order = s.get("right") is False or s.get("false_alarm")
+            misses.append(f"run {r['index']} [{r['stratum']}] {_where(kind, cs)}: truth {truth}; reported {got}"
+                          + (" -- ORDER" if order else "") + (f" -- INTERVAL: {outside}" if outside else ""))
     for r in errors:
         misses.append(f"run {r['index']} [{r['stratum']}]: ERROR {r['error']}")
     cpu = [r.get("gen_cpu_s", 0) + r.get("diag_cpu_s", 0) for r in ok]
@@ -275,8 +279,8 @@ def _fmt(v):
     if v is None:
         return "-"
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
-    return f"{v:.4g}"
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    return f"{v:.6g}"
 
 
 def _where(kind, cs):
