@@ -101,15 +101,15 @@ def test_halfcar_against_jaxdrift_model():
 
 def test_integration_converged():
     """The generator's tolerance (rtol 1e-10) against a 100x tighter solve: pitch and forces agree
-    to far below 9 significant digits of their range."""
+    to below 1e-9 of their range, the 9th significant digit (measured: 5e-12 and 2e-11)."""
     c = _case("clean", [], 8, road_class="C", speed=20.0)
     p = gv.true_vehicle(c)
     road = gv.FilteredRoad(np.random.default_rng(3), "C", 80.0)
     tau = np.linspace(0, 2.0, 401)
     s1 = gv.signals(p, road, 20.0, 0.0, gv.simulate(p, road, 20.0, 0.0, 2.0), tau)
     s2 = gv.signals(p, road, 20.0, 0.0, gv.simulate(p, road, 20.0, 0.0, 2.0, rtol=1e-12, atol=1e-14), tau)
-    assert np.max(np.abs(s1["beta"] - s2["beta"])) < 1e-9 * np.ptp(s2["beta"]) * 1e3
-    assert np.max(np.abs(s1["f1"] - s2["f1"])) < 1e-6 * np.ptp(s2["f1"])
+    assert np.max(np.abs(s1["beta"] - s2["beta"])) < 1e-9 * np.ptp(s2["beta"])
+    assert np.max(np.abs(s1["f1"] - s2["f1"])) < 1e-9 * np.ptp(s2["f1"])
 
 
 # ----------------------------------------------------------------------------- contract
@@ -320,3 +320,19 @@ def test_small_sweep_meets_issue_targets(tmp_path, kind, n):
     assert s["pair"]["both_in_first_two"] >= math.ceil(0.9 * s["pair"]["n"])
     assert s["effect_free"]["false_alarms"] <= math.floor(0.05 * s["effect_free"]["n"])
     assert s["coverage"]["runs_all_covered"] >= math.ceil(0.9 * s["coverage"]["runs"])
+
+
+def test_size_ranges():
+    """The sweep's size scale (0 barely detectable .. 1 large) matches the generators' draws."""
+    rng = np.random.default_rng(0)
+    model = dict(gv.VEHICLES["van"], g=9.81)
+    case = {"model": model, "effects": []}
+    for cause, tgt in gv.SINGLES:
+        u = [sw.size_u(gv.draw_effect(rng, cause, tgt, model), case) for _ in range(200)]
+        assert -1e-9 <= min(u) and max(u) <= 1 + 1e-9 and max(u) - min(u) > 0.8, (cause, tgt)
+    for cause in ga.SYSTEMATIC:
+        u = []
+        for seed in range(40):
+            c = ga.make_case({"index": 0, "stratum": "single", "what": [cause], "seed": seed}, max_samples=20000)
+            u += [sw.size_u(e, c) for e in c["effects"] if e["cause"] == cause]
+        assert -1e-9 <= min(u) and max(u) <= 1 + 1e-9 and max(u) - min(u) > 0.6, cause

@@ -58,6 +58,36 @@ SIZING = {"vehicle": {"durations": (10.0, 40.0), "rates": (200, 250, 300, 500, 6
                        "max_samples": 60000}}
 
 
+#: the generators' log-uniform size ranges of each systematic effect (``size_u`` maps an effect to
+#: its place in its range: 0 barely detectable ... 1 large; ``test_size_ranges`` keeps them in step)
+SIZE_RANGES = {"force_offset": (1e-3, 1e-1), "force_scale": (1e-3, 1e-1), "force_delay": (1e-4, 1e-2),
+               "parameter_error": (5e-3, 0.2), "gyro_bias": (3.0, 300.0), "gyro_scale": (1e-3, 5e-2),
+               "gyro_bias_drift": (1e-5, 1e-3), "sensor_position": (0.005, 0.1), "nonrigid": (0.005, 0.3)}
+
+
+def size_u(e: dict, case: dict) -> float:
+    """Where a systematic effect's size lies in its draw range, 0..1 on a log scale."""
+    import math
+
+    c, v = e["cause"], e["value"]
+    if c == "force_offset":
+        p = case["model"]
+        share = p["a"] if e["channel"] == "f1" else p["b"]
+        m = p["m1"] if e["channel"] == "f1" else p["m2"]
+        x = abs(v) / (m * p["g"] + p["m3"] * p["g"] * share / (p["a"] + p["b"]))
+    elif c in ("force_scale", "parameter_error", "gyro_scale"):
+        x = abs(v - 1.0)
+    elif c == "gyro_bias":
+        N = next((n["value"] for n in case["effects"] if n["cause"] == "gyro_noise"), math.radians(0.05) / 60)
+        x = abs(v) / (N / math.sqrt(case["duration"]))
+    elif c == "sensor_position":
+        x = math.sqrt(sum(d * d for d in v))
+    else:
+        x = abs(v)
+    lo, hi = SIZE_RANGES[c]
+    return (math.log(x) - math.log(lo)) / (math.log(hi) - math.log(lo))
+
+
 def target(d: dict) -> tuple:
     for k in ("channel", "parameter", "sensor"):
         if d.get(k) is not None:
@@ -189,6 +219,12 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
         per_single[t][0] += r["score"]["right"]
         per_single[t][1] += 1
     runs_cov = [r for r in ok if r["score"]["all_covered"] is not None]
+    by_size = {}
+    for name, group in (("single", singles), ("pair", pairs)):
+        for lo, hi, tag in ((0, 1 / 3, "smallest third"), (1 / 3, 2 / 3, "middle third"), (2 / 3, 1.01, "largest third")):
+            g = [r for r in group if lo <= min(size_u(e, r["case"]) for e in r["effects"]
+                                               if e["cause"] in SYSTEMATIC[kind]) < hi]
+            by_size[f"{name}, {tag}"] = {"right": sum(r["score"]["right"] for r in g), "n": len(g)}
     misses = []
     for r in ok:
         s = r["score"]
@@ -197,9 +233,13 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
             truth = ", ".join(f"{c['target']}={_fmt(c['true'])}" for c in s["coverage"]) or "no effect"
             got = ", ".join(f"{label(target(f))}={_fmt(f.get('estimate'))}" for f in r["findings"][:3]) or "no finding"
             cs = r["case"]
-            misses.append(f"run {r['index']} [{r['stratum']}] {_where(kind, cs)}: truth {truth}; "
-                          f"reported {got}" + ("" if s.get("right", True) and not s.get("false_alarm") else
-                                               " (order)" ) + ("" if s["all_covered"] is not False else " (interval)"))
+            outside = "; ".join(
+                f"{c['target']} {_fmt(c['true'])} " + ("not reported" if c["estimate"] is None else
+                                                       f"outside [{_fmt(c['interval'][0])}, {_fmt(c['interval'][1])}]")
+                for c in s["coverage"] if not c["covered"])
+            order = s.get("right") is False or s.get("false_alarm")
+            misses.append(f"run {r['index']} [{r['stratum']}] {_where(kind, cs)}: truth {truth}; reported {got}"
+                          + (" -- ORDER" if order else "") + (f" -- INTERVAL: {outside}" if outside else ""))
     for r in errors:
         misses.append(f"run {r['index']} [{r['stratum']}]: ERROR {r['error']}")
     cpu = [r.get("gen_cpu_s", 0) + r.get("diag_cpu_s", 0) for r in ok]
@@ -209,6 +249,7 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
                    "right_first_pct": _pct(sum(r["score"]["right"] for r in singles), len(singles)),
                    "right_or_declared": sum(r["score"]["right_or_declared"] for r in singles),
                    "per_target": {k: {"right": v[0], "n": v[1]} for k, v in sorted(per_single.items())}},
+        "right_by_size": by_size,
         "pair": {"n": len(pairs), "both_in_first_two": sum(r["score"]["right"] for r in pairs),
                  "both_in_first_two_pct": _pct(sum(r["score"]["right"] for r in pairs), len(pairs)),
                  "right_or_declared": sum(r["score"]["right_or_declared"] for r in pairs)},
@@ -238,8 +279,8 @@ def _fmt(v):
     if v is None:
         return "-"
     if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
-    return f"{v:.4g}"
+        return "[" + ", ".join(f"{x:.4g}" for x in v) + "]"
+    return f"{v:.6g}"
 
 
 def _where(kind, cs):
@@ -279,6 +320,9 @@ def markdown(s: dict) -> str:
         L.append(f"| {row} | " + " | ".join(str(cnt.get(c, "")) for c in cols) + " |")
     L += ["", "## Single-effect runs per target (right first / runs)", "",
           ", ".join(f"{k} {v['right']}/{v['n']}" for k, v in s["single"]["per_target"].items()), "",
+          "## Right first (singles) or both in the first two (pairs) by effect size", "",
+          "Size: where the smaller systematic effect lies in its log-uniform draw range.", "",
+          ", ".join(f"{k} {v['right']}/{v['n']}" for k, v in s["right_by_size"].items()), "",
           "## Interval coverage per cause (covered / effects)", "",
           ", ".join(f"{k} {v['covered']}/{v['n']}" for k, v in s["coverage"]["per_cause"].items()), "",
           f"## Misses ({len(s['misses'])})", ""]
@@ -314,6 +358,7 @@ def main(argv=None):
     gen = __import__("gen_vehicle" if a.kind == "vehicle" else "gen_attitude")
     cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{a.seed}")
     os.makedirs(cache, exist_ok=True)
+    os.makedirs(a.out, exist_ok=True)
     sizing = SIZING[a.kind]
     cases = gen.design(a.n, a.seed)
     i, k = (int(x) for x in a.chunk.split("/"))
