@@ -31,7 +31,7 @@
 # rainflow cycles (ASTM E1049-85); only ratios matter. Method: `docs/durability.md`.
 #
 # Set `JAXDRIFT_NOTEBOOK_SMALL=1` for a small, fast configuration (the test suite does); outputs go
-# to `JAXDRIFT_NOTEBOOK_OUT` (default `build/notebooks/durability`).
+# to `JAXDRIFT_NOTEBOOK_OUT` (default `build/notebooks/` in the repository).
 
 # %%
 import json
@@ -51,10 +51,10 @@ import jaxdrift
 from jaxdrift.durability import load_statistics, pitch_spring_rule, section_forces
 from jaxdrift.io._csvio import DEFAULT_MODEL
 from jaxdrift.studies import make_run
+from jaxdrift.studies._notebook import notebook_output_dir
 
 SMALL = os.environ.get("JAXDRIFT_NOTEBOOK_SMALL", "") not in ("", "0")
-OUT = os.environ.get("JAXDRIFT_NOTEBOOK_OUT", os.path.join("build", "notebooks", "durability"))
-os.makedirs(OUT, exist_ok=True)
+OUT = notebook_output_dir()
 
 T = 8.0 if SMALL else 60.0
 FS = 500.0 if SMALL else 1000.0

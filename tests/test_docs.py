@@ -39,7 +39,7 @@ JAXDRIFT = [(pos, c) for pos, c in COMMANDS if re.match(r"(\.venv/bin/)?jaxdrift
 
 def test_the_readme_has_commands():
     assert len(JAXDRIFT) >= 8
-    assert any(c == ACTIVATE for _, c in COMMANDS)
+    assert f"`{ACTIVATE}`" in README or any(c == ACTIVATE for _, c in COMMANDS)
 
 
 @pytest.mark.parametrize("pos,cmd", JAXDRIFT, ids=[c[:60] for _, c in JAXDRIFT])
