@@ -289,7 +289,8 @@ def _where(kind, cs):
                 f"{cs['duration']:g} s {cs['channel_set']} {cs['precision']} digits"
                 + (" motion-noise" if cs["motion_noise"] else ""))
     arr = "no array" if not cs.get("n_sensors") else f"{cs['n_sensors']} sensors"
-    return f"{cs['fs']:g} Hz {cs['duration']:g} s ref every {cs['reference_every']} {arr} {cs['precision']} digits"
+    ref = f"reference every {cs['reference_every']}" if cs["reference_every"] else "no reference"
+    return f"{cs['fs']:g} Hz {cs['duration']:g} s {ref} {arr} {cs['precision']} digits"
 
 
 def markdown(s: dict) -> str:
