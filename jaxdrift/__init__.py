@@ -130,6 +130,11 @@ _EXPORTS.update({
     "rotation_matrix": ("models._quaternion", "rotation_matrix"),
 })
 
+# --- the engine against the machine's limit (#16) ---
+_EXPORTS.update({
+    "use_all_cores": ("ensemble._devices", "use_all_cores"),
+})
+
 __all__ = sorted(_EXPORTS)
 
 
@@ -238,3 +243,4 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .models._quaternion import omega_matrix
     from .analysis._attitude_paths import quaternion_sde_paths
     from .models._quaternion import rotation_matrix
+    from .ensemble._devices import use_all_cores

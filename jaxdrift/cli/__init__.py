@@ -59,6 +59,15 @@ def main(argv: list[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 0
+    # One JAX CPU device per core before any subcommand touches JAX, so Monte-Carlo runs use
+    # every core (JAXDRIFT_CPU_DEVICES=1 or XLA_FLAGS keep the user's choice; see README).
+    # Called in-process after JAX started (tests, notebooks), the devices stay as they are.
+    from ..ensemble._devices import use_all_cores
+
+    try:
+        use_all_cores()
+    except RuntimeError:
+        pass
     try:
         rc = args.func(args)
     except UsageError as e:
