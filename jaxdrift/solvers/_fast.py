@@ -181,6 +181,11 @@ class _Loop(NamedTuple):
     unroll: int
 
 
+#: Under vmap, run the batched loop on (n, paths) arrays (True) or let vmap batch the per-path
+#: loop, paths first (False: the layout before issue #16, kept for benchmarks/engine_layouts.py).
+_PATHS_LAST = True
+
+
 def _solve(g, cfg, y0, inputs, args, consts):
     """The saved states ``(n_save, n)``; paths last and contiguous under ``vmap``.
 
@@ -200,6 +205,9 @@ def _solve(g, cfg, y0, inputs, args, consts):
     @fast.def_vmap
     def fast_batched(axis_size, in_batched, y0, inputs, args, consts):
         return _batched(g, cfg, axis_size, in_batched, y0, inputs, args, consts), True
+
+    if not _PATHS_LAST:
+        return plain(y0, inputs, args, consts)
 
     @jax.custom_jvp
     def solve(y0, inputs, args, consts):
