@@ -131,3 +131,30 @@ def test_user_choice_stands(env, expect):
     proc = subprocess.run([sys.executable, "-c", _ENV_CHILD], env=base, capture_output=True, text=True, timeout=120)
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert proc.stdout.split()[-2:] == expect.split()
+
+
+_CLI_CHILD = """
+import argparse, sys
+import jax
+import jaxdrift.cli as cli
+orig = cli.build_parser
+def build():
+    p = orig()
+    sub = next(a for a in p._actions if isinstance(a, argparse._SubParsersAction))
+    sub.add_parser("devices").set_defaults(func=lambda a: print("devices", len(jax.devices())))
+    return p
+cli.build_parser = build
+sys.argv = ["jaxdrift", "devices"]
+cli.main()          # as the program: all cores
+print("inprocess", cli.main(["devices"]))  # in-process with argv: devices unchanged, no error
+"""
+
+
+def test_cli_program_uses_all_cores():
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAXDRIFT_CPU_DEVICES")}
+    env["JAX_PLATFORMS"] = "cpu"
+    proc = subprocess.run([sys.executable, "-c", _CLI_CHILD], env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    lines = proc.stdout.split("\n")
+    assert f"devices {available_cores()}" in lines
+    assert "inprocess 0" in lines
