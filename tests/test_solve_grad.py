@@ -25,19 +25,20 @@ def rhs(t, y, w):
 
 
 def y_end(w, **kw):
-    sol = jaxdrift.solve_ode(rhs, jnp.array([1.0, 0.0]), 0.0, T, saveat=jnp.array([T]), args=w, **kw)
+    sol = jaxdrift.solve_ode(rhs, jnp.array([1.0, 0.0]), 0.0, T, saveat=np.array([T]), args=w, **kw)
     return sol.ys[-1, 0]
 
 
 ADAPTIVE = dict(rtol=1e-10, atol=1e-12)
+y_adaptive = jax.jit(lambda w: y_end(w, **ADAPTIVE))  # compiled once for all calls below
 
 
 def test_adaptive_forward_derivative_against_closed_form_and_fd():
     w = 2.0
     d_exact = float(jax.grad(exact)(w))
-    d_jvp = float(jax.jacfwd(lambda v: y_end(v, **ADAPTIVE))(w))
+    d_jvp = float(jax.jit(jax.jacfwd(y_adaptive))(w))
     eps = 1e-4
-    d_fd = (float(y_end(w + eps, **ADAPTIVE)) - float(y_end(w - eps, **ADAPTIVE))) / (2 * eps)
+    d_fd = (float(y_adaptive(w + eps)) - float(y_adaptive(w - eps))) / (2 * eps)
     assert abs(d_jvp - d_exact) <= 1e-8 * abs(d_exact), (d_jvp, d_exact)
     # finite differences carry the tolerance over eps (1e-6) and eps^2 truncation
     assert abs(d_jvp - d_fd) <= 1e-6 * abs(d_exact), (d_jvp, d_fd)
@@ -52,23 +53,23 @@ def test_adaptive_derivative_with_respect_to_t1_and_under_vmap():
         return sol.ys[0, 0]
 
     # a save time before t1 does not depend on t1
-    assert float(jax.jacfwd(end_at)(3.0)) == 0.0
+    assert float(jax.jit(jax.jacfwd(end_at))(3.0)) == 0.0
     ws = jnp.array([1.5, 2.0, 2.5])
-    d_vmap = jax.vmap(jax.jacfwd(lambda v: y_end(v, **ADAPTIVE)))(ws)
+    d_vmap = jax.jit(jax.vmap(jax.jacfwd(y_adaptive)))(ws)
     np.testing.assert_allclose(np.asarray(d_vmap), np.asarray(jax.vmap(jax.grad(exact))(ws)), rtol=1e-8)
 
 
 def test_adaptive_reverse_mode_is_refused_clearly():
     # the adaptive loop is a while_loop of unknown length: forward mode only (documented)
     with pytest.raises(ValueError, match="[Rr]everse-mode"):
-        jax.grad(lambda v: y_end(v, **ADAPTIVE))(2.0)
+        jax.grad(y_adaptive)(2.0)
 
 
 @pytest.mark.parametrize("mode", ["grad", "jacfwd"])
 def test_fixed_step_derivatives_both_modes(mode):
     w, dt = 2.0, 1e-3  # 3000 steps of DOPRI5: global error ~1e-13
-    fn = lambda v: y_end(v, dt=dt)  # noqa: E731
-    d = float((jax.grad if mode == "grad" else jax.jacfwd)(fn)(w))
+    fn = jax.jit(lambda v: y_end(v, dt=dt))
+    d = float(jax.jit((jax.grad if mode == "grad" else jax.jacfwd)(fn))(w))
     eps = 1e-5
     d_fd = (float(fn(w + eps)) - float(fn(w - eps))) / (2 * eps)
     d_exact = float(jax.grad(exact)(w))
@@ -76,5 +77,5 @@ def test_fixed_step_derivatives_both_modes(mode):
     assert abs(d - d_fd) <= 1e-8 * abs(d_exact), (d, d_fd)
     # batched (the paths-last loop) gives the same derivatives
     ws = jnp.array([1.5, 2.0])
-    dv = jax.vmap((jax.grad if mode == "grad" else jax.jacfwd)(fn))(ws)
+    dv = jax.jit(jax.vmap((jax.grad if mode == "grad" else jax.jacfwd)(fn)))(ws)
     np.testing.assert_allclose(np.asarray(dv), np.asarray(jax.vmap(jax.grad(exact))(ws)), rtol=1e-9)
