@@ -226,15 +226,33 @@ def _jax_cases(study, n_paths, repeats, which):
 
         return jax.vmap(path)
 
+    def all_devices(make):
+        # jaxdrift's default: the paths split over every device (one per core after
+        # jaxdrift.use_all_cores()), each device running its share vmapped, as monte_carlo does.
+        def made():
+            fn = make()
+            devs = jax.devices()
+            if len(devs) == 1:
+                return fn
+            from jax.sharding import Mesh, PartitionSpec as P
+
+            mesh = Mesh(np.array(devs), ("paths",))
+            return jax.shard_map(fn, mesh=mesh, in_specs=P("paths"), out_specs=P("paths"), check_vma=False)
+
+        return made
+
     makers = {
-        "fixed/jaxdrift": jd_fixed,
-        "fixed/jaxdrift-fast": fast(),
+        "fixed/jaxdrift": all_devices(jd_fixed),
+        "fixed/jaxdrift-fast": all_devices(fast()),
+        "fixed/jaxdrift-1dev": jd_fixed,
+        "fixed/jaxdrift-fast-1dev": fast(),
+        "fixed/diffrax-alldev": all_devices(dfx(False)),
         "fixed/jaxdrift-fast-rbg": fast(key_=jax.random.key(0, impl="rbg")),
         "fixed/jaxdrift-fast-grid": fast_grid(),
         "fixed/jaxdrift-float32-plain": fast(compensated=False),
         "fixed/jaxdrift-fast-float64": fast(dtype=jnp.float64, compensated=False),
         "fixed/diffrax": dfx(False),
-        "adaptive/jaxdrift": jd_adaptive,
+        "adaptive/jaxdrift": all_devices(jd_adaptive),
         "adaptive/diffrax": dfx(True),
     }
     # Compile (first call) every case, then time them in interleaved rounds, so that a change of
@@ -249,22 +267,39 @@ def _jax_cases(study, n_paths, repeats, which):
         t = time.perf_counter()
         jax.block_until_ready(fns[name](idx))
         first[name] = time.perf_counter() - t
-    best = {name: float("inf") for name in fns}
+    limits = {}
+    if any(w.startswith("limit/") for w in which):
+        import limit as limit_mod
+
+        print("  compiling the numba limit ...", flush=True)
+        for name, call in limit_mod.limit_cases(study, n_paths, threads=(1, 2), layouts=("simd",)).items():
+            if "limit/" + name.removeprefix("limit-") in which:
+                call()
+                limits["limit/" + name.removeprefix("limit-")] = call
+    best = {name: float("inf") for name in list(fns) + list(limits)}
+    cpu = dict(best)
     for r in range(repeats):
         idx_r = idx + (r + 1) * n_paths
         for name, fn in fns.items():
-            t = time.perf_counter()
+            t, c = time.perf_counter(), time.process_time()
             o = fn(idx_r)
             jax.block_until_ready(o)
             best[name] = min(best[name], time.perf_counter() - t)
+            cpu[name] = min(cpu[name], time.process_time() - c)
             outs[name] = o
             print(f"    round {r + 1}: {name} {best[name]:.1f} s", flush=True)
+        for name, call in limits.items():
+            (w, c), ys = call()
+            best[name], cpu[name] = min(best[name], w), min(cpu[name], c)
+            outs[name] = (ys, np.full(n_paths, n_fixed))
+            print(f"    round {r + 1}: {name} {best[name]:.2f} s", flush=True)
     paths = {}
-    for name in fns:
+    for name in list(fns) + list(limits):
         ys, steps = outs[name]
         total = float(np.sum(np.asarray(steps)))
         out[name] = {
-            "paths": n_paths, "compile_s": max(first[name] - best[name], 0.0), "run_s": best[name],
+            "paths": n_paths, "compile_s": max(first.get(name, best[name]) - best[name], 0.0), "run_s": best[name],
+            "cpu_s": cpu[name], "cpu_ns_per_path_step": cpu[name] / total * 1e9,
             "path_steps": total, "steps_per_path": total / n_paths, "path_steps_per_s": total / best[name],
             "paths_per_s": n_paths / best[name],
         }
@@ -439,16 +474,29 @@ def _markdown(report):
         f"load average at start {report['machine']['load_average_at_start'][0]:.1f}."
     )
     lines.append("")
-    lines.append("| mode | solver | steps/path | path-steps/s | vs diffrax | vs scipy | compile s |")
-    lines.append("|---|---|---:|---:|---:|---:|---:|")
+    lines.append("| mode | solver | steps/path | path-steps/s | vs diffrax | vs scipy | of the limit | CPU ns/path-step | compile s |")
+    lines.append("|---|---|---:|---:|---:|---:|---:|---:|---:|")
     for name, r in report["cases"].items():
         mode, solver = name.split("/", 1)
         vd = r.get("vs_diffrax")
         vs = r.get("vs_scipy")
+        vl = r.get("of_limit")
+        lc = r.get("limit_case")
+        cn = r.get("cpu_ns_per_path_step")
         lines.append(
             f"| {mode} | {solver} | {r['steps_per_path']:.0f} | {r['path_steps_per_s']:.3g} | "
-            f"{'' if vd is None else f'{vd:.2f}x'} | {'' if vs is None else f'{vs:.0f}x'} | {r['compile_s']:.1f} |"
+            f"{'' if vd is None else f'{vd:.2f}x'} | {'' if vs is None else f'{vs:.0f}x'} | "
+            f"{'' if vl is None else f'{100 * vl:.1f} % of {lc}'} | {'' if cn is None else f'{cn:.0f}'} | "
+            f"{r['compile_s']:.1f} |"
         )
+    lines.append("")
+    lines.append(
+        f"jaxdrift, jaxdrift-fast and adaptive jaxdrift run with jaxdrift's defaults: paths split over all "
+        f"{len(report['machine']['jax_devices'])} CPU devices (jaxdrift.use_all_cores); `-1dev` rows and diffrax run "
+        "on one device (diffrax-alldev: diffrax split the same way). `limit/...`: the same step as a compiled loop "
+        "(benchmarks/limit.py, numba, SIMD over blocks of 64 paths, `given` noise read from memory, `inline` drawn in "
+        "the loop, 1 or 2 threads); the fraction compares path-steps/s with the limit of the same dtype and core "
+        "count. CPU ns/path-step: process CPU time (all threads) over path-steps, less sensitive to other load.")
     for mem in (report.get("memory"), report.get("memory_float64")):
         if not mem or "peak_rss_bytes" not in mem:
             continue
@@ -520,6 +568,8 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=2)
     ap.add_argument("--scipy-paths", type=int, default=None)
     ap.add_argument("--cases", default="all", help="comma-separated case names, or 'all'")
+    ap.add_argument("--devices", type=int, default=None,
+                    help="JAX CPU devices (default: one per core, jaxdrift.use_all_cores)")
     ap.add_argument("--memory", choices=("fast", "float64", "skip"), default=None,
                     help="engine path of the memory case (default: fast; skip with --quick)")
     ap.add_argument("--memory-paths", type=int, default=10_000)
@@ -547,6 +597,9 @@ def main(argv=None):
         stem.with_suffix(".md").write_text(_markdown(report))
         return 0
     if a.memory_case:
+        import jaxdrift
+
+        jaxdrift.use_all_cores(a.devices)  # the memory case runs with jaxdrift's defaults too
         _memory_case(a.memory_paths, a.memory_T, a.memory_chunk, a.memory or "fast")
         return 0
     if a.memory_only:
@@ -560,6 +613,9 @@ def main(argv=None):
 
     import jax
 
+    import jaxdrift
+
+    n_dev = jaxdrift.use_all_cores(a.devices)  # before the first JAX operation
     jax.config.update("jax_enable_x64", True)
     from _setup import paper_study
 
@@ -568,11 +624,15 @@ def main(argv=None):
     scipy_paths = a.scipy_paths or (1 if a.quick else 2)
     memory = a.memory or ("skip" if a.quick else "fast")
     all_cases = [
-        "fixed/jaxdrift", "fixed/jaxdrift-fast", "fixed/jaxdrift-fast-rbg", "fixed/jaxdrift-float32-plain",
-        "fixed/jaxdrift-fast-float64", "fixed/diffrax", "fixed/scipy",
+        "fixed/jaxdrift", "fixed/jaxdrift-fast", "fixed/jaxdrift-1dev", "fixed/jaxdrift-fast-1dev",
+        "fixed/diffrax", "fixed/diffrax-alldev", "fixed/scipy",
         "adaptive/jaxdrift", "adaptive/diffrax", "adaptive/scipy",
+        "limit/simd-float64-given-1t", "limit/simd-float64-given-2t", "limit/simd-float32-given-1t",
+        "limit/simd-float32-given-2t", "limit/simd-float64-inline-2t", "limit/simd-float32-inline-2t",
     ]
     which = all_cases if a.cases == "all" else a.cases.split(",")
+    if n_dev == 1:
+        which = [w for w in which if not w.endswith(("-1dev", "-alldev"))]
     report = {
         "command": "python benchmarks/throughput.py" + (" " + " ".join(sys.argv[1:]) if argv is None and sys.argv[1:] else ""),
         "machine": _machine(),
@@ -598,6 +658,15 @@ def main(argv=None):
             if ref in cases and ref != name:
                 r[field] = r["path_steps_per_s"] / cases[ref]["path_steps_per_s"]
                 r[field.replace("vs_", "paths_vs_")] = r["paths_per_s"] / cases[ref]["paths_per_s"]
+    for name, r in cases.items():
+        if name.startswith("limit/") or not name.startswith("fixed/") or "scipy" in name:
+            continue
+        dt_ = "float32" if "fast" in name else "float64"
+        th = "1t" if (name.endswith("-1dev") or (name.startswith("fixed/diffrax") and "alldev" not in name)) else "2t"
+        ref = f"limit/simd-{dt_}-given-{th}"
+        if ref in cases:
+            r["of_limit"] = r["path_steps_per_s"] / cases[ref]["path_steps_per_s"]
+            r["limit_case"] = ref.removeprefix("limit/")
     report["cases"] = cases
     report["fast_vs_float64"] = _drift_agreement(paths, ts)
     report["prng_path_independent"] = _prng_check()

@@ -142,6 +142,11 @@ _EXPORTS.update({
     "pseudo_damage": ("durability._damage", "pseudo_damage"),
 })
 
+# --- the engine against the machine's limit (#16) ---
+_EXPORTS.update({
+    "use_all_cores": ("ensemble._devices", "use_all_cores"),
+})
+
 __all__ = sorted(_EXPORTS)
 
 
@@ -257,3 +262,4 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .durability._variants import pitch_spring_rule
     from .durability._damage import rainflow_cycles
     from .durability._damage import pseudo_damage
+    from .ensemble._devices import use_all_cores

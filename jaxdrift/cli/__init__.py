@@ -71,6 +71,17 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     _common.set_verbosity(0 if args.quiet else 2 if args.verbose else 1, args.command)
+    # One JAX CPU device per core before any subcommand touches JAX, so Monte-Carlo runs use
+    # every core (JAXDRIFT_CPU_DEVICES=1 or XLA_FLAGS keep the user's choice; see README). Only
+    # when run as the program (argv from the command line): a caller that passes argv in-process
+    # (tests, notebooks) keeps its devices, and one whose JAX already started cannot change them.
+    if argv is None:
+        from ..ensemble._devices import use_all_cores
+
+        try:
+            use_all_cores()
+        except RuntimeError:
+            pass
     try:
         rc = args.func(args)
     except (UsageError, InputError) as e:

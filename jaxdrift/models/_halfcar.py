@@ -41,6 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ._params import HalfCarParams
+from ._trig import sincos
 
 __all__ = [
     "FORCE_STATE_NAMES",
@@ -65,7 +66,9 @@ PITCH_STATE_NAMES = ("z1", "z2", "z3", "dz1", "dz2", "dz3", "zeta1", "zeta2")
 def _sin_cos(beta, linear: bool):
     if linear:
         return beta, jnp.ones_like(beta)
-    return jnp.sin(beta), jnp.cos(beta)
+    # Polynomials instead of jnp.sin/jnp.cos: within 2 ulp, and 1.6-2.6x faster half-car steps on
+    # CPU, where XLA computes the library sin/cos once per output row (docs/performance.md).
+    return sincos(beta)
 
 
 def spring_forces(q, dq, params: HalfCarParams, linear: bool = False):

@@ -25,13 +25,15 @@ with float64 is measured, not assumed: see ``benchmarks/throughput.py`` and ``do
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ._inputs import local_to_step
+from jax.custom_batching import custom_vmap
+
+from ._inputs import SampledSignal, _StepSignal, local_to_step
 from ._solution import Solution
 from ._tableau import DOPRI5
 
@@ -132,74 +134,30 @@ def solve_fixed_fast(
     if y0.ndim != 1:
         raise ValueError(f"y0 must be a 1-D state vector, got shape {y0.shape}")
     tdt = jnp.result_type(float)  # the default float: float64 with x64 on
-    tab = DOPRI5
-    a = [[float(v) for v in row] for row in tab.a]
-    b = [float(v) for v in tab.b]
-    c = [float(v) for v in tab.c]
-    h = jnp.asarray(dtf, dtype)
-    s = len(c)
-
     if inputs is not None:
         inputs = jnp.asarray(inputs).astype(dtype)
         if inputs.ndim != 2 or inputs.shape[0] != n_steps + 1:
             raise ValueError(f"inputs must have shape (n_steps + 1, m) = ({n_steps + 1}, m), got {inputs.shape}")
 
-        def rhs(t, y, u, a=args):
+        def g(t, y, u, a):
             return jnp.asarray(f(t, y, u, a)).astype(dtype)
-
-        u_init = inputs[0]
     else:
 
-        def rhs(t, y, u, a=args):
+        def g(t, y, u, a):
             return jnp.asarray(f(t, y, a)).astype(dtype)
 
-        u_init = jnp.zeros((0,), dtype)
-
-    def step(carry, u1):
-        i, y, k0, comp, u0 = carry
-        t = jnp.asarray(t0f, tdt) + i.astype(tdt) * jnp.asarray(dtf, tdt)
-        # grid-aligned SampledSignals in args: read their two samples once per step
-        step_args = local_to_step(args, t0f, dtf, i)
-        du = None if inputs is None else u1 - u0
-        ks = [k0]
-        for j in range(1, s):
-            dy = sum(a[j][m] * ks[m] for m in range(j) if a[j][m] != 0.0)
-            u = None if inputs is None else u0 + jnp.asarray(c[j], dtype) * du
-            ks.append(rhs(t + c[j] * dtf, y + h * dy, u, step_args))
-        inc = h * sum(b[m] * ks[m] for m in range(s) if b[m] != 0.0)
-        if compensated:
-            d = inc - comp
-            y_new = y + d
-            comp = (y_new - y) - d
-        else:
-            y_new = y + inc
-        t_new = jnp.asarray(t0f, tdt) + (i + 1).astype(tdt) * jnp.asarray(dtf, tdt)
-        return (i + 1, y_new, rhs(t_new, y_new, u1, step_args), comp, u1 if inputs is not None else u0), None
-
-    k_init = rhs(jnp.asarray(t0f, tdt), y0, u_init if inputs is not None else None)
-    if k_init.shape != y0.shape:
-        raise ValueError(f"the vector field returned shape {k_init.shape}, expected {y0.shape}")
-    carry = (jnp.asarray(0, jnp.int32), y0, k_init, jnp.zeros_like(y0), u_init)
-
-    def xs_of(lo, n):
-        # The "next sample" of each of n steps from step lo (None: no inputs, scan by length).
-        return None if inputs is None else inputs[lo + 1 : lo + 1 + n]
-
-    if first:
-        carry, _ = jax.lax.scan(step, carry, xs_of(0, first), length=first)
-
-    def segment(carry, us):
-        carry, _ = jax.lax.scan(step, carry, us, length=stride, unroll=min(unroll, stride))
-        return carry, carry[1]
-
-    if n_save > 1:
-        seg_xs = xs_of(first, stride * (n_save - 1))
-        if seg_xs is not None:
-            seg_xs = seg_xs.reshape((n_save - 1, stride) + seg_xs.shape[1:])
-        _, rest = jax.lax.scan(segment, carry, seg_xs, length=n_save - 1)
-        ys = jnp.concatenate([carry[1][None], rest])
-    else:
-        ys = carry[1][None]
+    u_ex = None if inputs is None else inputs[0]
+    # The vector field sees the args of one step: grid-aligned signals as their two samples.
+    step_args_ex = local_to_step(args, t0f, dtf, jnp.asarray(0, jnp.int32))
+    k_ex = jax.eval_shape(g, jnp.asarray(t0f, tdt), y0, u_ex, step_args_ex)
+    if k_ex.shape != y0.shape:
+        raise ValueError(f"the vector field returned shape {k_ex.shape}, expected {y0.shape}")
+    # Closed-over arrays (possibly batch tracers of an enclosing vmap) become explicit arguments,
+    # so that the batching rule sees which of them are batched.
+    g_conv, consts = jax.closure_convert(g, jnp.asarray(t0f, tdt), y0, u_ex, step_args_ex)
+    cfg = _Loop(n_steps=n_steps, first=first, stride=stride, n_save=n_save, t0=t0f, dt=dtf, dtype=dtype,
+                tdt=tdt, compensated=compensated, unroll=unroll)
+    ys = _solve(g_conv, cfg, y0, inputs, args, tuple(consts))
     zero = jnp.asarray(0, jnp.int32)
     return Solution(
         ts=jnp.asarray(ts_np, tdt),
@@ -209,3 +167,198 @@ def solve_fixed_fast(
         num_rejected=zero,
     )
 
+
+class _Loop(NamedTuple):
+    n_steps: int
+    first: int
+    stride: int
+    n_save: int
+    t0: float
+    dt: float
+    dtype: Any
+    tdt: Any
+    compensated: bool
+    unroll: int
+
+
+#: Under vmap, run the batched loop on (n, paths) arrays (True) or let vmap batch the per-path
+#: loop, paths first (False: the layout before issue #16, kept for benchmarks/engine_layouts.py).
+_PATHS_LAST = True
+
+
+def _solve(g, cfg, y0, inputs, args, consts):
+    """The saved states ``(n_save, n)``; paths last and contiguous under ``vmap``.
+
+    Evaluation runs the per-path loop or, under ``vmap``, the batched loop on ``(n, paths)``
+    arrays (``custom_vmap``). ``custom_vmap`` has no reverse-mode rule, so derivatives are taken
+    through the per-path loop (``custom_jvp``), which ``jax.grad`` can transpose.
+    """
+
+    def plain(y0, inputs, args, consts):
+        return _loop(lambda t, y, u, a: g(t, y, u, a, *consts), cfg, y0, inputs,
+                     lambda i: local_to_step(args, cfg.t0, cfg.dt, i))
+
+    @custom_vmap
+    def fast(y0, inputs, args, consts):
+        return plain(y0, inputs, args, consts)
+
+    @fast.def_vmap
+    def fast_batched(axis_size, in_batched, y0, inputs, args, consts):
+        return _batched(g, cfg, axis_size, in_batched, y0, inputs, args, consts), True
+
+    if not _PATHS_LAST:
+        return plain(y0, inputs, args, consts)
+
+    @jax.custom_jvp
+    def solve(y0, inputs, args, consts):
+        return fast(y0, inputs, args, consts)
+
+    @solve.defjvp
+    def solve_jvp(primals, tangents):
+        return jax.jvp(plain, primals, tangents)
+
+    return solve(y0, inputs, args, consts)
+
+
+def _loop(F, cfg, y0, inputs, step_args_of):
+    """The nested loop (saves around steps) for any state layout: ``y0`` is ``(n,)`` or ``(n, B)``.
+
+    ``F(t, y, u, step_args)`` evaluates the vector field in that layout; ``inputs`` is None or the
+    samples with the step index first; ``step_args_of(i)`` gives the ``args`` for step ``i``.
+    """
+    tab = DOPRI5
+    a = [[float(v) for v in row] for row in tab.a]
+    b = [float(v) for v in tab.b]
+    c = [float(v) for v in tab.c]
+    dtype, tdt, t0f, dtf = cfg.dtype, cfg.tdt, cfg.t0, cfg.dt
+    h = jnp.asarray(dtf, dtype)
+    s = len(c)
+
+    def step(carry, u1):
+        i, y, k0, comp, u0 = carry
+        t = jnp.asarray(t0f, tdt) + i.astype(tdt) * jnp.asarray(dtf, tdt)
+        sargs = step_args_of(i)
+        du = None if inputs is None else u1 - u0
+        ks = [k0]
+        for j in range(1, s):
+            dy = sum(a[j][m] * ks[m] for m in range(j) if a[j][m] != 0.0)
+            u = None if inputs is None else u0 + jnp.asarray(c[j], dtype) * du
+            ks.append(F(t + c[j] * dtf, y + h * dy, u, sargs))
+        inc = h * sum(b[m] * ks[m] for m in range(s) if b[m] != 0.0)
+        if cfg.compensated:
+            d = inc - comp
+            y_new = y + d
+            comp = (y_new - y) - d
+        else:
+            y_new = y + inc
+        t_new = jnp.asarray(t0f, tdt) + (i + 1).astype(tdt) * jnp.asarray(dtf, tdt)
+        return (i + 1, y_new, F(t_new, y_new, u1, sargs), comp, u1 if inputs is not None else u0), None
+
+    u_init = jnp.zeros((0,), dtype) if inputs is None else inputs[0]
+    i0 = jnp.asarray(0, jnp.int32)
+    k_init = F(jnp.asarray(t0f, tdt), y0, None if inputs is None else u_init, step_args_of(i0))
+    carry = (i0, y0, k_init, jnp.zeros_like(y0), u_init)
+
+    def xs_of(lo, n):
+        # The "next sample" of each of n steps from step lo (None: no inputs, scan by length).
+        return None if inputs is None else inputs[lo + 1 : lo + 1 + n]
+
+    first, stride, n_save = cfg.first, cfg.stride, cfg.n_save
+    if first:
+        carry, _ = jax.lax.scan(step, carry, xs_of(0, first), length=first)
+
+    def segment(carry, us):
+        carry, _ = jax.lax.scan(step, carry, us, length=stride, unroll=min(cfg.unroll, stride))
+        return carry, carry[1]
+
+    if n_save == 1:
+        return carry[1][None]
+    seg_xs = xs_of(first, stride * (n_save - 1))
+    if seg_xs is not None:
+        seg_xs = seg_xs.reshape((n_save - 1, stride) + seg_xs.shape[1:])
+    _, rest = jax.lax.scan(segment, carry, seg_xs, length=n_save - 1)
+    return jnp.concatenate([carry[1][None], rest])
+
+
+def _batched(g, cfg, B, in_batched, y0, inputs, args, consts):
+    """The loop over a batch of ``B`` paths with the path axis last: state ``(n, B)``.
+
+    Every stage then works on whole rows of ``B`` contiguous values, and grid-aligned
+    :class:`SampledSignal` samples are transposed once to ``(samples, channels, B)`` so a step
+    reads two contiguous rows. Returns ``(B, n_save, n)``.
+    """
+    b_y0, b_inputs, b_args, b_consts = in_batched
+    n = y0.shape[-1]
+    Y0 = jnp.moveaxis(y0, 0, -1) if b_y0 else jnp.broadcast_to(y0[:, None], (n, B))
+    u_ax = None
+    if inputs is not None and b_inputs:
+        inputs, u_ax = jnp.moveaxis(inputs, 0, -1), 1  # (steps + 1, m, B)
+    prepared, aligned = _prepare_signals(args, b_args, cfg)
+    c_axes = tuple(0 if bc else None for bc in b_consts)
+
+    def step_args_of(i):
+        return _step_signals(args, prepared, aligned, b_args, cfg, i)
+
+    def F(t, y, u, sargs_axes):
+        sargs, axes = sargs_axes
+        fb = jax.vmap(lambda y_, u_, a_, *c_: g(t, y_, u_, a_, *c_), in_axes=(1, u_ax, axes) + c_axes, out_axes=1)
+        return fb(y, u, sargs, *consts)
+
+    ys = _loop(F, cfg, Y0, inputs, step_args_of)  # (n_save, n, B)
+    return jnp.moveaxis(ys, -1, 0)
+
+
+def _is_signal(x):
+    return isinstance(x, SampledSignal)
+
+
+class _Pair:
+    """Two results of one tree leaf (not a pytree, so ``args``' own tuples stay containers)."""
+
+    def __init__(self, first, second):
+        self.first, self.second = first, second
+
+
+def _unzip(pairs):
+    is_pair = lambda x: isinstance(x, _Pair)  # noqa: E731
+    return (jax.tree.map(lambda p: p.first, pairs, is_leaf=is_pair),
+            jax.tree.map(lambda p: p.second, pairs, is_leaf=is_pair))
+
+
+def _prepare_signals(args, b_args, cfg):
+    """Transpose the batched samples of grid-aligned signals to ``(samples, channels, B)`` once."""
+
+    def prep(leaf, b):
+        k = _aligned_offset(leaf, cfg) if _is_signal(leaf) else None
+        if k is None:
+            return _Pair(leaf, "off")
+        values = jnp.moveaxis(leaf.values, 0, -1) if b.values else leaf.values
+        return _Pair(values, k)
+
+    return _unzip(jax.tree.map(prep, args, b_args, is_leaf=_is_signal))
+
+
+def _aligned_offset(sig, cfg):
+    """The sample index of the grid's ``t0`` if ``sig`` is sampled on the step grid, else None."""
+    if sig.dt_static is None or sig.t0_static is None or abs(sig.dt_static - cfg.dt) > 1e-12 * cfg.dt:
+        return None
+    offset = (cfg.t0 - sig.t0_static) / cfg.dt
+    return int(round(offset)) if abs(offset - round(offset)) <= 1e-9 else None
+
+
+def _step_signals(args, prepared, aligned, b_args, cfg, i):
+    """(args of step ``i``, their vmap axes): aligned signals become two rows of samples."""
+
+    def conv(leaf, prep, off, b):
+        if isinstance(off, str):  # any other leaf (or a signal off the grid): as it is
+            return _Pair(leaf, jax.tree.map(lambda bb: 0 if bb else None, b))
+        n = leaf.values.shape[-2]  # samples axis of the per-path (or shared) values
+        k = jnp.clip(i + off, 0, n - 2)
+        lo = jax.lax.dynamic_index_in_dim(prep, k, keepdims=False)
+        hi = jax.lax.dynamic_index_in_dim(prep, k + 1, keepdims=False)
+        t_left = leaf.t0_static + k.astype(prep.dtype) * cfg.dt
+        ax = 1 if b.values else None  # rows (channels, B) or shared (channels,)
+        sig = _StepSignal(lo=lo, hi=hi, t_left=t_left, dt=cfg.dt, kind=leaf.kind)
+        return _Pair(sig, _StepSignal(lo=ax, hi=ax, t_left=None, dt=cfg.dt, kind=leaf.kind))
+
+    return _unzip(jax.tree.map(conv, args, prepared, aligned, b_args, is_leaf=_is_signal))

@@ -304,17 +304,19 @@ def _solve_adaptive(f, y0, f0, t0, t1, ts, out0, args, rtol, atol, dt0, max_step
         h0 = _select_initial_step(f, t0, y0, f0, t1, args, rtol, atol, DOPRI5.error_order)
     else:
         h0 = jnp.asarray(dt0, dtype)
+    h0 = jax.lax.stop_gradient(h0)  # the step sequence is not differentiated (see _adaptive_loop)
     # Closed-over arrays (possibly batch tracers of an enclosing vmap) become explicit arguments,
     # so that the batching rule below sees which inputs are batched.
     f_conv, consts = jax.closure_convert(f, t0, y0, args)
     consts = tuple(consts)
 
-    @custom_vmap
-    def core(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts):
+    def plain(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts):
         fb = jax.vmap(lambda t, y: f_conv(t, y, args, *consts))
         sol = _adaptive_loop(fb, y0[None], f0[None], t0[None], t1[None], ts[None], rtol, atol, h0[None],
                              max_steps, ctrl)
         return jax.tree.map(lambda x: x[0], sol)
+
+    core = custom_vmap(plain)
 
     @core.def_vmap
     def core_batched(axis_size, in_batched, y0, f0, t0, t1, ts, args, rtol, atol, h0, consts):
@@ -341,7 +343,17 @@ def _solve_adaptive(f, y0, f0, t0, t1, ts, out0, args, rtol, atol, dt0, max_step
         )
         return sol, jax.tree.map(lambda _: True, sol)
 
-    return core(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts)
+    # custom_vmap has no usable derivative rule here; derivatives (forward mode: the loop is a
+    # while_loop) go through the plain loop, which vmap batches with its standard rules.
+    @jax.custom_jvp
+    def solve(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts):
+        return core(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts)
+
+    @solve.defjvp
+    def solve_jvp(primals, tangents):
+        return jax.jvp(plain, primals, tangents)
+
+    return solve(y0, f0, t0, t1, ts, args, rtol, atol, h0, consts)
 
 
 def _adaptive_loop(fb, y0, f0, t0, t1, ts, rtol, atol, h0, max_steps, ctrl):
@@ -372,7 +384,9 @@ def _adaptive_loop(fb, y0, f0, t0, t1, ts, rtol, atol, h0, max_steps, ctrl):
         t, y, k0, h_abs, rejected, err_prev, idx, out, n_acc, n_rej, result = c
         active = (t < t1) & (result == Result.SUCCESS)
         # scipy: min_step = 10 * spacing(t); the step is first raised to it, then tested.
-        min_step = 10 * jnp.abs(jnp.nextafter(t, jnp.asarray(jnp.inf, dtype)) - t)
+        # nextafter has no derivative rule: the spacing of t is a constant for derivatives.
+        t_sg = jax.lax.stop_gradient(t)
+        min_step = 10 * jnp.abs(jnp.nextafter(t_sg, jnp.asarray(jnp.inf, dtype)) - t_sg)
         underflow = active & (h_abs < min_step * (1 - 1e-15))
         h_try = jnp.maximum(h_abs, min_step)
         t_new = jnp.minimum(t + h_try, t1)
@@ -383,6 +397,10 @@ def _adaptive_loop(fb, y0, f0, t0, t1, ts, rtol, atol, h0, max_steps, ctrl):
         err = h[:, None] * sum(float(e[i]) * ks[i] for i in range(len(ks)) if e[i] != 0.0)
         scale = atol + jnp.maximum(jnp.abs(y), jnp.abs(y_new)) * rtol
         err_norm = jnp.sqrt(jnp.mean(jnp.square(err / scale), axis=-1))  # scipy's RMS norm
+        # Derivatives are those of the solution on the chosen step sequence (the steps do not
+        # depend on the parameters; the last step still ends at t1): forward-mode sensitivities
+        # then solve the variational equations with the same steps (tests/test_solve_grad.py).
+        err_norm = jax.lax.stop_gradient(err_norm)
         # A NaN/inf error norm (or state) is a rejected step with the minimum factor.
         finite = jnp.isfinite(err_norm) & jnp.all(jnp.isfinite(y_new), axis=-1)
         accept = active & ~underflow & finite & (err_norm < 1)
