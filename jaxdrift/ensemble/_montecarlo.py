@@ -336,92 +336,23 @@ def monte_carlo(
     key_data, key_impl = _split_key(key)
     models_dyn, models_static = _split_models(models, n_paths)
     has_models = models is not None
-    levels = tuple(float(q) for q in np.atleast_1d(np.asarray(quantiles, dtype=np.float64)))
-    if any(not (0.0 <= q <= 1.0) for q in levels):
-        raise ValueError(f"quantiles must lie in [0, 1], got {levels}")
-    max_memory_bytes = _check_positive_int("max_memory_bytes", max_memory_bytes)
-    if chunk_size is not None:
-        chunk_size = _check_positive_int("chunk_size", chunk_size)
-    if drift_reference is not None and drift_threshold is None:
-        raise ValueError("drift_reference was given without drift_threshold")
-
+    levels, chunk_size, max_memory_bytes = _check_options(quantiles, chunk_size, max_memory_bytes,
+                                                         drift_threshold, drift_reference)
     devices = list(jax.devices() if devices is None else devices)
     if not devices:
         raise ValueError("devices is empty")
     n_dev = len(devices)
     mesh = Mesh(np.array(devices), (_AXIS,))
 
-    # Shapes of one path, checked before anything is compiled.
-    model0 = None
-    if has_models:
-        model0 = eqx.combine(jax.tree_util.tree_map(lambda x: x[0], models_dyn), models_static)
-    key0 = key_data if key_impl is None else jax.random.wrap_key_data(key_data, impl=key_impl)
-    try:
-        out_shape = jax.eval_shape(lambda: path_fn(key0, jnp.int32(0), model0))
-        ys_shape, code_shape = out_shape
-    except (TypeError, ValueError) as err:
-        if "cannot unpack" in str(err) or "too many values" in str(err) or "not enough values" in str(err):
-            raise TypeError("path_fn must return a pair (ys, result_code)") from err
-        raise
-    if len(ys_shape.shape) != 2 or ys_shape.shape[0] != n_save:
-        raise ValueError(
-            f"path_fn returned ys of shape {ys_shape.shape}; expected (n_save, n_out) with "
-            f"n_save = len(save_ts) = {n_save}"
-        )
-    if not jnp.issubdtype(ys_shape.dtype, jnp.floating):
-        raise TypeError(f"path_fn must return floating ys, got {ys_shape.dtype}")
-    if code_shape.shape != () or not jnp.issubdtype(code_shape.dtype, jnp.integer):
-        raise TypeError(
-            f"path_fn must return an integer scalar result code, got {code_shape.dtype}{code_shape.shape}"
-        )
-    n_out = ys_shape.shape[1]
-    dtype = ys_shape.dtype
-
-    threshold = reference = None
-    channel = None
-    if drift_threshold is not None:
-        threshold = float(drift_threshold)
-        if not (math.isfinite(threshold) and threshold >= 0):
-            raise ValueError(f"drift_threshold must be finite and >= 0, got {drift_threshold!r}")
-        if isinstance(drift_channel, (bool, np.bool_)) or not isinstance(drift_channel, (int, np.integer)):
-            raise TypeError(f"drift_channel must be an int, got {drift_channel!r}")
-        if not -n_out <= drift_channel < n_out:
-            raise ValueError(f"drift_channel {drift_channel} out of range for {n_out} outputs")
-        channel = int(drift_channel) % n_out
-        ref = np.zeros(n_save) if drift_reference is None else np.asarray(drift_reference, np.float64)
-        if ref.shape == (n_save, n_out):
-            ref = ref[:, channel]
-        if ref.shape != (n_save,):
-            raise ValueError(
-                f"drift_reference must have shape ({n_save},) or ({n_save}, {n_out}), got {ref.shape}"
-            )
-        reference = ref.astype(dtype)
-        threshold = np.asarray(threshold, dtype)
-
+    n_out, dtype = _path_output_shape(path_fn, key_data, key_impl, models_dyn, models_static, has_models,
+                                      n_save)
+    threshold, reference, channel = _drift_setup(drift_threshold, drift_reference, drift_channel, n_save,
+                                                 n_out, dtype)
     want_paths = keep_paths or bool(levels)
-    pf_dyn, pf_static = eqx.partition(path_fn, eqx.is_array)
-    chunk_fn = _chunk_fn(pf_static, mesh, key_impl, models_static, has_models, channel, want_paths)
-    replicated = NamedSharding(mesh, P())
-    sharded = NamedSharding(mesh, P(_AXIS))
-    rep_args = (
-        jax.tree_util.tree_map(lambda x: _put(x, replicated), pf_dyn),
-        _put(key_data, replicated),
-    )
-    tail_args = (
-        None if reference is None else _put(reference, replicated),
-        None if threshold is None else _put(threshold, replicated),
-    )
+    chunk_fn, chunk_args = _sharded_chunk_call(path_fn, mesh, key_data, key_impl, models_dyn,
+                                               models_static, has_models, n_paths, channel, want_paths,
+                                               reference, threshold)
     max_chunk = n_dev * -(-n_paths // n_dev)
-
-    def chunk_args(start, size):
-        idx = np.arange(start, start + size, dtype=np.int64)
-        mask = idx < n_paths
-        idx = np.minimum(idx, n_paths - 1).astype(np.int32)  # padding repeats the last path
-        mdyn = None
-        if has_models:
-            mdyn = jax.tree_util.tree_map(lambda x: _put(x[idx], sharded), models_dyn)
-        return (*rep_args, _put(idx, sharded), _put(mask, sharded), mdyn, *tail_args)
-
     if chunk_size is None:
         chunk_size, compiled = _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk,
                                                        max_memory_bytes)
@@ -430,37 +361,8 @@ def monte_carlo(
     else:
         chunk_size = min(n_dev * -(-chunk_size // n_dev), max_chunk)
 
-    acc = (0, np.zeros((n_save, n_out)), np.zeros((n_save, n_out)))
-    codes, firsts, paths = [], [], []
-
-    def collect(out, start):
-        nonlocal acc
-        out = {k: _fetch(v) for k, v in out.items()}
-        real = slice(0, min(chunk_size, n_paths - start))
-        for d in range(n_dev):  # fixed merge order: chunk by chunk, device by device
-            acc = _chan_merge(acc, int(out["n"][d]), out["mean"][d].astype(np.float64),
-                              out["m2"][d].astype(np.float64))
-        codes.append(out["code"][real])
-        if "first" in out:
-            firsts.append(out["first"][real])
-        if "ys" in out:
-            paths.append(out["ys"][real])
-        return real.stop
-
-    from tqdm import tqdm
-
-    bar = tqdm(total=n_paths, unit="path", disable=not progress or jax.process_index() != 0,
-               desc="monte_carlo")
-    try:
-        pending = None
-        for start in range(0, n_paths, chunk_size):
-            out = chunk_fn(*chunk_args(start, chunk_size))  # dispatched asynchronously
-            if pending is not None:
-                bar.update(collect(*pending))
-            pending = (out, start)
-        bar.update(collect(*pending))
-    finally:
-        bar.close()
+    acc, codes, firsts, paths = _stream_chunks(chunk_fn, chunk_args, chunk_size, n_paths, n_dev,
+                                               (n_save, n_out), progress)
 
     count, mean, m2 = acc
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -503,6 +405,141 @@ def monte_carlo(
         chunk_size=chunk_size,
         n_devices=n_dev,
     )
+
+
+def _check_options(quantiles, chunk_size, max_memory_bytes, drift_threshold, drift_reference):
+    """Validate the scalar options; return the quantile levels, chunk size and memory budget."""
+    levels = tuple(float(q) for q in np.atleast_1d(np.asarray(quantiles, dtype=np.float64)))
+    if any(not (0.0 <= q <= 1.0) for q in levels):
+        raise ValueError(f"quantiles must lie in [0, 1], got {levels}")
+    max_memory_bytes = _check_positive_int("max_memory_bytes", max_memory_bytes)
+    if chunk_size is not None:
+        chunk_size = _check_positive_int("chunk_size", chunk_size)
+    if drift_reference is not None and drift_threshold is None:
+        raise ValueError("drift_reference was given without drift_threshold")
+    return levels, chunk_size, max_memory_bytes
+
+
+def _path_output_shape(path_fn, key_data, key_impl, models_dyn, models_static, has_models, n_save):
+    """Shapes of one path's outputs (``jax.eval_shape``), checked before anything is compiled;
+    returns ``(n_out, dtype)``."""
+    model0 = None
+    if has_models:
+        model0 = eqx.combine(jax.tree_util.tree_map(lambda x: x[0], models_dyn), models_static)
+    key0 = key_data if key_impl is None else jax.random.wrap_key_data(key_data, impl=key_impl)
+    try:
+        out_shape = jax.eval_shape(lambda: path_fn(key0, jnp.int32(0), model0))
+        ys_shape, code_shape = out_shape
+    except (TypeError, ValueError) as err:
+        if "cannot unpack" in str(err) or "too many values" in str(err) or "not enough values" in str(err):
+            raise TypeError("path_fn must return a pair (ys, result_code)") from err
+        raise
+    if len(ys_shape.shape) != 2 or ys_shape.shape[0] != n_save:
+        raise ValueError(
+            f"path_fn returned ys of shape {ys_shape.shape}; expected (n_save, n_out) with "
+            f"n_save = len(save_ts) = {n_save}"
+        )
+    if not jnp.issubdtype(ys_shape.dtype, jnp.floating):
+        raise TypeError(f"path_fn must return floating ys, got {ys_shape.dtype}")
+    if code_shape.shape != () or not jnp.issubdtype(code_shape.dtype, jnp.integer):
+        raise TypeError(
+            f"path_fn must return an integer scalar result code, got {code_shape.dtype}{code_shape.shape}"
+        )
+    return ys_shape.shape[1], ys_shape.dtype
+
+
+def _drift_setup(drift_threshold, drift_reference, drift_channel, n_save, n_out, dtype):
+    """Validate the drift-off options; return ``(threshold, reference, channel)`` (all None without
+    a threshold), the threshold and reference in the outputs' dtype."""
+    threshold = reference = None
+    channel = None
+    if drift_threshold is not None:
+        threshold = float(drift_threshold)
+        if not (math.isfinite(threshold) and threshold >= 0):
+            raise ValueError(f"drift_threshold must be finite and >= 0, got {drift_threshold!r}")
+        if isinstance(drift_channel, (bool, np.bool_)) or not isinstance(drift_channel, (int, np.integer)):
+            raise TypeError(f"drift_channel must be an int, got {drift_channel!r}")
+        if not -n_out <= drift_channel < n_out:
+            raise ValueError(f"drift_channel {drift_channel} out of range for {n_out} outputs")
+        channel = int(drift_channel) % n_out
+        ref = np.zeros(n_save) if drift_reference is None else np.asarray(drift_reference, np.float64)
+        if ref.shape == (n_save, n_out):
+            ref = ref[:, channel]
+        if ref.shape != (n_save,):
+            raise ValueError(
+                f"drift_reference must have shape ({n_save},) or ({n_save}, {n_out}), got {ref.shape}"
+            )
+        reference = ref.astype(dtype)
+        threshold = np.asarray(threshold, dtype)
+    return threshold, reference, channel
+
+
+def _sharded_chunk_call(path_fn, mesh, key_data, key_impl, models_dyn, models_static, has_models, n_paths,
+                        channel, want_paths, reference, threshold):
+    """The compiled chunk function and ``chunk_args(start, size)``, which places one chunk's
+    arguments on the mesh (path indices and models sharded, the rest replicated; the last chunk
+    padded with repeats of the last path and masked)."""
+    pf_dyn, pf_static = eqx.partition(path_fn, eqx.is_array)
+    chunk_fn = _chunk_fn(pf_static, mesh, key_impl, models_static, has_models, channel, want_paths)
+    replicated = NamedSharding(mesh, P())
+    sharded = NamedSharding(mesh, P(_AXIS))
+    rep_args = (
+        jax.tree_util.tree_map(lambda x: _put(x, replicated), pf_dyn),
+        _put(key_data, replicated),
+    )
+    tail_args = (
+        None if reference is None else _put(reference, replicated),
+        None if threshold is None else _put(threshold, replicated),
+    )
+
+    def chunk_args(start, size):
+        idx = np.arange(start, start + size, dtype=np.int64)
+        mask = idx < n_paths
+        idx = np.minimum(idx, n_paths - 1).astype(np.int32)  # padding repeats the last path
+        mdyn = None
+        if has_models:
+            mdyn = jax.tree_util.tree_map(lambda x: _put(x[idx], sharded), models_dyn)
+        return (*rep_args, _put(idx, sharded), _put(mask, sharded), mdyn, *tail_args)
+
+    return chunk_fn, chunk_args
+
+
+def _stream_chunks(chunk_fn, chunk_args, chunk_size, n_paths, n_dev, out_shape, progress):
+    """Run the chunks (each dispatched before the previous one is collected) and merge their
+    statistics on the host in a fixed order; return ``(acc, codes, firsts, paths)`` with
+    ``acc = (count, mean, m2)`` and per-chunk lists of result codes, drift-off indices and outputs."""
+    acc = (0, np.zeros(out_shape), np.zeros(out_shape))
+    codes, firsts, paths = [], [], []
+
+    def collect(out, start):
+        nonlocal acc
+        out = {k: _fetch(v) for k, v in out.items()}
+        real = slice(0, min(chunk_size, n_paths - start))
+        for d in range(n_dev):  # fixed merge order: chunk by chunk, device by device
+            acc = _chan_merge(acc, int(out["n"][d]), out["mean"][d].astype(np.float64),
+                              out["m2"][d].astype(np.float64))
+        codes.append(out["code"][real])
+        if "first" in out:
+            firsts.append(out["first"][real])
+        if "ys" in out:
+            paths.append(out["ys"][real])
+        return real.stop
+
+    from tqdm import tqdm
+
+    bar = tqdm(total=n_paths, unit="path", disable=not progress or jax.process_index() != 0,
+               desc="monte_carlo")
+    try:
+        pending = None
+        for start in range(0, n_paths, chunk_size):
+            out = chunk_fn(*chunk_args(start, chunk_size))  # dispatched asynchronously
+            if pending is not None:
+                bar.update(collect(*pending))
+            pending = (out, start)
+        bar.update(collect(*pending))
+    finally:
+        bar.close()
+    return acc, codes, firsts, paths
 
 
 def _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk, budget):
