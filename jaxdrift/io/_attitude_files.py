@@ -57,8 +57,26 @@ def _decimal_step(s):
     return 10.0 ** (e - dec)
 
 
+def _rounding_rms(lines, columns):
+    """RMS rounding error of the cells of ``columns`` in ``lines``, from their written decimals."""
+    steps = []
+    for ln in lines:
+        cells = ln.split(",")
+        for j in columns:
+            try:
+                steps.append(_decimal_step(cells[j]))
+            except (ValueError, IndexError):
+                pass
+    return float(np.sqrt(np.mean(np.square(steps)) / 12.0)) if steps else 0.0
+
+
 def read_attitude_run(path):
-    """Read and validate an attitude run CSV. Returns a dict; raises UsageError on bad input."""
+    """Read and validate an attitude run CSV. Raises UsageError on bad input.
+
+    Returns a dict: ``path``, ``t`` (n,), ``dt``, ``w`` (n, 3), ``q_ref`` (n, 4, NaN rows where no
+    reference; None without), ``acc`` (n, N, 3) or None, ``extra_columns``, ``quantisation`` and
+    ``acc_quantisation`` (RMS rounding error of the rate and accelerometer cells as written).
+    """
     if not os.path.isfile(path):
         raise _usage_error(f"{path}: no such file")
     with open(path) as fh:
@@ -158,19 +176,13 @@ def read_attitude_run(path):
     stray_acc = [c for c in extra if len(c) >= 3 and c[0] == "a" and c[1:-1].isdigit() and c[-1] in "xyz"]
     if stray_acc:
         raise _usage_error(f"{path}, row 1: accelerometer column(s) {', '.join(stray_acc)} out of sequence (a1x.. must be contiguous)")
-    # quantisation step of the rate columns, from the text (to tell noise from rounding)
+    # quantisation of the rate columns (and of the accelerometer columns), from the text: the RMS
+    # rounding error sqrt(mean(step^2) / 12) of the written digits (to tell noise from rounding)
     sample = body[:: max(1, len(body) // 5000)]
-    steps = []
-    wi = [col[c] for c in CHANNELS]
-    for ln in sample:
-        cells = ln.split(",")
-        for j in wi:
-            try:
-                steps.append(_decimal_step(cells[j]))
-            except (ValueError, IndexError):
-                pass
-    quant = float(np.sqrt(np.mean(np.square(steps)) / 12.0)) if steps else 0.0
-    return {"path": path, "t": t, "dt": dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra, "quantisation": quant}
+    quant = _rounding_rms(sample, [col[c] for c in CHANNELS])
+    acc_quant = _rounding_rms(sample, [col[c] for trip in acc_names for c in trip]) if acc_names else 0.0
+    return {"path": path, "t": t, "dt": dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra, "quantisation": quant,
+            "acc_quantisation": acc_quant}
 
 
 def read_sensors(path, n_expected=None, check_geometry=None):

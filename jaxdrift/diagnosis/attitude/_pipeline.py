@@ -71,6 +71,7 @@ class AttitudeState:
     sigma_axis: np.ndarray | None = None
     noise_var_rate: float = 0.0
     noise_finding: dict | None = None
+    noise_findings: list = field(default_factory=list)  # further noise findings (accel_noise), after gyro_noise
     scale_floor: float = 0.0
     bias_floor: float = 0.0
     drift_floor: float = 0.0
