@@ -345,12 +345,12 @@ def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
     r_fit = positions + pos_corr
     idx = af["idx"]
     e_gn = gyro_noise_power(w_use[idx - 1] - b_rep, w_use[idx + 1] - b_rep, s.sigma_axis, r_fit)
-    m_gn = float(np.mean(e_gn))
     wp = white_rigidity_power(resid_after, N, blocks)
     tq2 = stats.t.ppf(0.975, nb2 - 1)
     # per block: total power, white power, gyro-noise power; differences taken block by block
     pb_total = _block_power(resid_after, N, blocks)
     pb_gn = np.array([e_gn[b].mean() for b in blocks])
+    m_gn = float(pb_gn.mean())
     acc_var, acc_se = _mean_se(wp["per_block"] - pb_gn)
     nr2_raw, nr_se = _mean_se(pb_total - wp["per_block"])
     nr2 = max(nr2_raw, 0.0)
