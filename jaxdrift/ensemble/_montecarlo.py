@@ -364,23 +364,9 @@ def monte_carlo(
     acc, codes, firsts, paths = _stream_chunks(chunk_fn, chunk_args, chunk_size, n_paths, n_dev,
                                                (n_save, n_out), progress)
 
-    count, mean, m2 = acc
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(count > 0, mean, np.nan)
-        var = m2 / (count - 1) if count > 1 else np.full((n_save, n_out), np.nan)
-    result = np.concatenate(codes).astype(np.int32)
-    ys_all = np.concatenate(paths) if paths else None
-    q = None
-    if levels:
-        ok = ys_all[result == 0]
-        if ok.shape[0] == 0:
-            q = np.full((len(levels), n_save, n_out), np.nan)
-        else:
-            q = np.quantile(ok.astype(np.float64), levels, axis=0)
-    drift_off = None
-    if threshold is not None:
-        first = np.concatenate(firsts)
-        drift_off = np.where(first >= 0, ts[np.maximum(first, 0)], np.inf)
+    count = acc[0]
+    mean, var, result, ys_all, q, drift_off = _ensemble_statistics(acc, codes, firsts, paths, levels, ts,
+                                                                    threshold, (n_save, n_out))
     n_failed = int(np.count_nonzero(result != 0))
     if n_failed:
         found = ", ".join(f"{int(c)}: {int(k)}" for c, k in zip(*np.unique(result[result != 0], return_counts=True)))
@@ -405,6 +391,30 @@ def monte_carlo(
         chunk_size=chunk_size,
         n_devices=n_dev,
     )
+
+
+def _ensemble_statistics(acc, codes, firsts, paths, levels, ts, threshold, out_shape):
+    """From the merged ``acc = (count, mean, m2)`` and the per-chunk lists: mean and variance over the
+    successful paths, result codes, the paths' outputs (or None), quantiles (or None) and drift-off
+    times (or None)."""
+    count, mean, m2 = acc
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, mean, np.nan)
+        var = m2 / (count - 1) if count > 1 else np.full(out_shape, np.nan)
+    result = np.concatenate(codes).astype(np.int32)
+    ys_all = np.concatenate(paths) if paths else None
+    q = None
+    if levels:
+        ok = ys_all[result == 0]
+        if ok.shape[0] == 0:
+            q = np.full((len(levels), *out_shape), np.nan)
+        else:
+            q = np.quantile(ok.astype(np.float64), levels, axis=0)
+    drift_off = None
+    if threshold is not None:
+        first = np.concatenate(firsts)
+        drift_off = np.where(first >= 0, ts[np.maximum(first, 0)], np.inf)
+    return mean, var, result, ys_all, q, drift_off
 
 
 def _check_options(quantiles, chunk_size, max_memory_bytes, drift_threshold, drift_reference):
