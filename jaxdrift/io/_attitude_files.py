@@ -70,6 +70,45 @@ def _rounding_rms(lines, columns):
     return float(np.sqrt(np.mean(np.square(steps)) / 12.0)) if steps else 0.0
 
 
+def _significant_digits(s):
+    """Significant digits written in a number's text ("0.00552004" -> 6, "-1.2e+03" -> 2)."""
+    mant = s.strip().lower().partition("e")[0].lstrip("+-").replace(".", "")
+    return len(mant.lstrip("0"))
+
+
+def _written_rounding_rms(lines, columns):
+    """RMS rounding error of the cells of ``columns`` as written, robust to how they were printed.
+
+    A cell's step is its last written decimal, except that ``%g`` drops trailing zeros ("1.2" for
+    1.20000) and exact zeros carry no digits at all: per column, with ``p`` the most significant
+    digits any cell shows and ``D`` the most decimals, a cell of magnitude ``10^e`` is rounded to
+    ``max(min(decimal step, 10^(e - p + 1)), 10^-D)``: the significant-digit step for ``%g`` files,
+    the fixed decimal step for ``%f`` files. Zero cells are skipped. Returns sqrt(mean(step^2) / 12).
+    """
+    steps = []
+    for j in columns:
+        cells = []
+        for ln in lines:
+            parts = ln.split(",")
+            if j < len(parts):
+                c = parts[j].strip()
+                try:
+                    v = float(c)
+                except ValueError:
+                    continue
+                if v != 0.0 and math.isfinite(v):
+                    cells.append((c, v))
+        if not cells:
+            continue
+        dec = np.array([_decimal_step(c) for c, _ in cells])
+        p = max(_significant_digits(c) for c, _ in cells)
+        mag = np.floor(np.log10(np.abs([v for _, v in cells])))
+        steps.append(np.maximum(np.minimum(dec, 10.0 ** (mag - p + 1)), dec.min()))
+    if not steps:
+        return 0.0
+    return float(np.sqrt(np.mean(np.square(np.concatenate(steps))) / 12.0))
+
+
 def read_attitude_run(path):
     """Read and validate an attitude run CSV. Raises UsageError on bad input.
 
@@ -177,10 +216,12 @@ def read_attitude_run(path):
     if stray_acc:
         raise _usage_error(f"{path}, row 1: accelerometer column(s) {', '.join(stray_acc)} out of sequence (a1x.. must be contiguous)")
     # quantisation of the rate columns (and of the accelerometer columns), from the text: the RMS
-    # rounding error sqrt(mean(step^2) / 12) of the written digits (to tell noise from rounding)
+    # rounding error sqrt(mean(step^2) / 12) of the written digits (to tell noise from rounding).
+    # The rates keep the plain last-decimal step (the gyro noise floor was set with it; it
+    # overstates the rounding of %g text by up to a few times); the accelerometers use the robust one.
     sample = body[:: max(1, len(body) // 5000)]
     quant = _rounding_rms(sample, [col[c] for c in CHANNELS])
-    acc_quant = _rounding_rms(sample, [col[c] for trip in acc_names for c in trip]) if acc_names else 0.0
+    acc_quant = _written_rounding_rms(sample, [col[c] for trip in acc_names for c in trip]) if acc_names else 0.0
     return {"path": path, "t": t, "dt": dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra, "quantisation": quant,
             "acc_quantisation": acc_quant}
 
