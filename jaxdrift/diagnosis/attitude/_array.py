@@ -4,7 +4,10 @@ Per sample, the rigid-body model ``a_i = c + (alpha~ + W) r_i`` with ``W = omega
 gyro (bias-corrected for its noise) is fitted for ``c`` and ``alpha``; what is left is the rigidity
 residual (:func:`array_residual`). Sensor position corrections (and, without another bias source,
 gyro biases through ``W``) are fitted by Gauss-Newton with block-sandwich covariances
-(:func:`array_fit`). :func:`array_step` is the pipeline step that turns them into findings.
+(:func:`array_fit`). The rigidity residual is split by its character in time: its white part
+(:func:`white_rigidity_power`) is the gyro noise through ``W`` (:func:`gyro_noise_power`) plus
+``accel_noise``; the rest is ``nonrigid`` (docs/attitude.md, "Accelerometer noise and
+non-rigidity"). :func:`array_step` is the pipeline step that turns them into findings.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from scipy import stats
 from ...models._quaternion import skew_np
 from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_CHI2, Z_SIGNIFICANT, finding, fmt
 
-__all__ = ["array_residual", "array_fit", "rigidity_rms", "array_step"]
+__all__ = ["array_residual", "array_fit", "rigidity_rms", "gyro_noise_power", "white_rigidity_power", "array_step"]
 
 
 def array_residual(acc, r, W):
