@@ -74,14 +74,14 @@ _EXPORTS.update({
     "SolverSpec": ("studies._study", "SolverSpec"),
     "StudyConfig": ("studies._study", "StudyConfig"),
     "VirtualMeasurement": ("studies._study", "VirtualMeasurement"),
-    "drift_off_time": ("studies._study", "drift_off_time"),
+    "drift_off_time": ("studies._paper_summary", "drift_off_time"),
     "run_force_paths": ("studies._study", "run_force_paths"),
     "run_paper_study": ("studies._study", "run_paper_study"),
     "run_pitch_paths": ("studies._study", "run_pitch_paths"),
     "simulate_forces": ("studies._study", "simulate_forces"),
     "simulate_prescribed_pitch": ("studies._study", "simulate_prescribed_pitch"),
     "virtual_measurement": ("studies._study", "virtual_measurement"),
-    "write_paper_outputs": ("studies._study", "write_paper_outputs"),
+    "write_paper_outputs": ("studies._paper_plots", "write_paper_outputs"),
 })
 
 # --- variance (#4) ---
@@ -213,14 +213,14 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .studies._study import SolverSpec
     from .studies._study import StudyConfig
     from .studies._study import VirtualMeasurement
-    from .studies._study import drift_off_time
+    from .studies._paper_summary import drift_off_time
     from .studies._study import run_force_paths
     from .studies._study import run_paper_study
     from .studies._study import run_pitch_paths
     from .studies._study import simulate_forces
     from .studies._study import simulate_prescribed_pitch
     from .studies._study import virtual_measurement
-    from .studies._study import write_paper_outputs
+    from .studies._paper_plots import write_paper_outputs
     from .solvers._fast import solve_fixed_fast
     from .analysis._variance import CovarianceResult
     from .analysis._variance import brownian_intensity

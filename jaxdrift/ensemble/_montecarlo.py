@@ -336,6 +336,89 @@ def monte_carlo(
     key_data, key_impl = _split_key(key)
     models_dyn, models_static = _split_models(models, n_paths)
     has_models = models is not None
+    levels, chunk_size, max_memory_bytes = _check_options(quantiles, chunk_size, max_memory_bytes,
+                                                         drift_threshold, drift_reference)
+    devices = list(jax.devices() if devices is None else devices)
+    if not devices:
+        raise ValueError("devices is empty")
+    n_dev = len(devices)
+    mesh = Mesh(np.array(devices), (_AXIS,))
+
+    n_out, dtype = _path_output_shape(path_fn, key_data, key_impl, models_dyn, models_static, has_models,
+                                      n_save)
+    threshold, reference, channel = _drift_setup(drift_threshold, drift_reference, drift_channel, n_save,
+                                                 n_out, dtype)
+    want_paths = keep_paths or bool(levels)
+    chunk_fn, chunk_args = _sharded_chunk_call(path_fn, mesh, key_data, key_impl, models_dyn,
+                                               models_static, has_models, n_paths, channel, want_paths,
+                                               reference, threshold)
+    max_chunk = n_dev * -(-n_paths // n_dev)
+    if chunk_size is None:
+        chunk_size, compiled = _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk,
+                                                       max_memory_bytes)
+        if compiled is not None:  # the probe already compiled this chunk size: reuse it
+            chunk_fn = compiled
+    else:
+        chunk_size = min(n_dev * -(-chunk_size // n_dev), max_chunk)
+
+    acc, codes, firsts, paths = _stream_chunks(chunk_fn, chunk_args, chunk_size, n_paths, n_dev,
+                                               (n_save, n_out), progress)
+
+    count = acc[0]
+    mean, var, result, ys_all, q, drift_off = _ensemble_statistics(acc, codes, firsts, paths, levels, ts,
+                                                                    threshold, (n_save, n_out))
+    n_failed = int(np.count_nonzero(result != 0))
+    if n_failed:
+        found = ", ".join(f"{int(c)}: {int(k)}" for c, k in zip(*np.unique(result[result != 0], return_counts=True)))
+        warnings.warn(
+            f"{n_failed} of {n_paths} Monte-Carlo paths failed (result code: count = {found}); "
+            f"the statistics use the {count} successful paths",
+            RuntimeWarning,
+            stacklevel=2,
+        )
+    return MCResult(
+        save_ts=ts,
+        mean=mean,
+        var=var,
+        count=int(count),
+        quantile_levels=levels,
+        quantiles=q,
+        drift_off_time=drift_off,
+        drift_threshold=None if threshold is None else float(threshold),
+        drift_channel=channel,
+        result=result,
+        ys=ys_all if keep_paths else None,
+        chunk_size=chunk_size,
+        n_devices=n_dev,
+    )
+
+
+def _ensemble_statistics(acc, codes, firsts, paths, levels, ts, threshold, out_shape):
+    """From the merged ``acc = (count, mean, m2)`` and the per-chunk lists: mean and variance over the
+    successful paths, result codes, the paths' outputs (or None), quantiles (or None) and drift-off
+    times (or None)."""
+    count, mean, m2 = acc
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(count > 0, mean, np.nan)
+        var = m2 / (count - 1) if count > 1 else np.full(out_shape, np.nan)
+    result = np.concatenate(codes).astype(np.int32)
+    ys_all = np.concatenate(paths) if paths else None
+    q = None
+    if levels:
+        ok = ys_all[result == 0]
+        if ok.shape[0] == 0:
+            q = np.full((len(levels), *out_shape), np.nan)
+        else:
+            q = np.quantile(ok.astype(np.float64), levels, axis=0)
+    drift_off = None
+    if threshold is not None:
+        first = np.concatenate(firsts)
+        drift_off = np.where(first >= 0, ts[np.maximum(first, 0)], np.inf)
+    return mean, var, result, ys_all, q, drift_off
+
+
+def _check_options(quantiles, chunk_size, max_memory_bytes, drift_threshold, drift_reference):
+    """Validate the scalar options; return the quantile levels, chunk size and memory budget."""
     levels = tuple(float(q) for q in np.atleast_1d(np.asarray(quantiles, dtype=np.float64)))
     if any(not (0.0 <= q <= 1.0) for q in levels):
         raise ValueError(f"quantiles must lie in [0, 1], got {levels}")
@@ -344,14 +427,12 @@ def monte_carlo(
         chunk_size = _check_positive_int("chunk_size", chunk_size)
     if drift_reference is not None and drift_threshold is None:
         raise ValueError("drift_reference was given without drift_threshold")
+    return levels, chunk_size, max_memory_bytes
 
-    devices = list(jax.devices() if devices is None else devices)
-    if not devices:
-        raise ValueError("devices is empty")
-    n_dev = len(devices)
-    mesh = Mesh(np.array(devices), (_AXIS,))
 
-    # Shapes of one path, checked before anything is compiled.
+def _path_output_shape(path_fn, key_data, key_impl, models_dyn, models_static, has_models, n_save):
+    """Shapes of one path's outputs (``jax.eval_shape``), checked before anything is compiled;
+    returns ``(n_out, dtype)``."""
     model0 = None
     if has_models:
         model0 = eqx.combine(jax.tree_util.tree_map(lambda x: x[0], models_dyn), models_static)
@@ -374,9 +455,12 @@ def monte_carlo(
         raise TypeError(
             f"path_fn must return an integer scalar result code, got {code_shape.dtype}{code_shape.shape}"
         )
-    n_out = ys_shape.shape[1]
-    dtype = ys_shape.dtype
+    return ys_shape.shape[1], ys_shape.dtype
 
+
+def _drift_setup(drift_threshold, drift_reference, drift_channel, n_save, n_out, dtype):
+    """Validate the drift-off options; return ``(threshold, reference, channel)`` (all None without
+    a threshold), the threshold and reference in the outputs' dtype."""
     threshold = reference = None
     channel = None
     if drift_threshold is not None:
@@ -397,8 +481,14 @@ def monte_carlo(
             )
         reference = ref.astype(dtype)
         threshold = np.asarray(threshold, dtype)
+    return threshold, reference, channel
 
-    want_paths = keep_paths or bool(levels)
+
+def _sharded_chunk_call(path_fn, mesh, key_data, key_impl, models_dyn, models_static, has_models, n_paths,
+                        channel, want_paths, reference, threshold):
+    """The compiled chunk function and ``chunk_args(start, size)``, which places one chunk's
+    arguments on the mesh (path indices and models sharded, the rest replicated; the last chunk
+    padded with repeats of the last path and masked)."""
     pf_dyn, pf_static = eqx.partition(path_fn, eqx.is_array)
     chunk_fn = _chunk_fn(pf_static, mesh, key_impl, models_static, has_models, channel, want_paths)
     replicated = NamedSharding(mesh, P())
@@ -411,7 +501,6 @@ def monte_carlo(
         None if reference is None else _put(reference, replicated),
         None if threshold is None else _put(threshold, replicated),
     )
-    max_chunk = n_dev * -(-n_paths // n_dev)
 
     def chunk_args(start, size):
         idx = np.arange(start, start + size, dtype=np.int64)
@@ -422,15 +511,14 @@ def monte_carlo(
             mdyn = jax.tree_util.tree_map(lambda x: _put(x[idx], sharded), models_dyn)
         return (*rep_args, _put(idx, sharded), _put(mask, sharded), mdyn, *tail_args)
 
-    if chunk_size is None:
-        chunk_size, compiled = _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk,
-                                                       max_memory_bytes)
-        if compiled is not None:  # the probe already compiled this chunk size: reuse it
-            chunk_fn = compiled
-    else:
-        chunk_size = min(n_dev * -(-chunk_size // n_dev), max_chunk)
+    return chunk_fn, chunk_args
 
-    acc = (0, np.zeros((n_save, n_out)), np.zeros((n_save, n_out)))
+
+def _stream_chunks(chunk_fn, chunk_args, chunk_size, n_paths, n_dev, out_shape, progress):
+    """Run the chunks (each dispatched before the previous one is collected) and merge their
+    statistics on the host in a fixed order; return ``(acc, codes, firsts, paths)`` with
+    ``acc = (count, mean, m2)`` and per-chunk lists of result codes, drift-off indices and outputs."""
+    acc = (0, np.zeros(out_shape), np.zeros(out_shape))
     codes, firsts, paths = [], [], []
 
     def collect(out, start):
@@ -461,48 +549,7 @@ def monte_carlo(
         bar.update(collect(*pending))
     finally:
         bar.close()
-
-    count, mean, m2 = acc
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mean = np.where(count > 0, mean, np.nan)
-        var = m2 / (count - 1) if count > 1 else np.full((n_save, n_out), np.nan)
-    result = np.concatenate(codes).astype(np.int32)
-    ys_all = np.concatenate(paths) if paths else None
-    q = None
-    if levels:
-        ok = ys_all[result == 0]
-        if ok.shape[0] == 0:
-            q = np.full((len(levels), n_save, n_out), np.nan)
-        else:
-            q = np.quantile(ok.astype(np.float64), levels, axis=0)
-    drift_off = None
-    if threshold is not None:
-        first = np.concatenate(firsts)
-        drift_off = np.where(first >= 0, ts[np.maximum(first, 0)], np.inf)
-    n_failed = int(np.count_nonzero(result != 0))
-    if n_failed:
-        found = ", ".join(f"{int(c)}: {int(k)}" for c, k in zip(*np.unique(result[result != 0], return_counts=True)))
-        warnings.warn(
-            f"{n_failed} of {n_paths} Monte-Carlo paths failed (result code: count = {found}); "
-            f"the statistics use the {count} successful paths",
-            RuntimeWarning,
-            stacklevel=2,
-        )
-    return MCResult(
-        save_ts=ts,
-        mean=mean,
-        var=var,
-        count=int(count),
-        quantile_levels=levels,
-        quantiles=q,
-        drift_off_time=drift_off,
-        drift_threshold=None if threshold is None else float(threshold),
-        drift_channel=channel,
-        result=result,
-        ys=ys_all if keep_paths else None,
-        chunk_size=chunk_size,
-        n_devices=n_dev,
-    )
+    return acc, codes, firsts, paths
 
 
 def _chunk_size_from_budget(chunk_fn, chunk_args, n_dev, max_chunk, budget):

@@ -18,6 +18,9 @@
 ``|beta_sim - beta_measured|`` exceeds ``drift_threshold_deg`` (default 1 deg), ``inf`` if never
 (the same with ``z3_threshold`` metres for the vertical chassis motion ``z3``). Every simulation
 starts from the static equilibrium of its own model (:func:`jaxdrift.static_equilibrium`).
+
+This module holds the configuration and the simulations; the JSON summary is built in
+``_paper_summary.py`` and the figures and files are written by ``_paper_plots.py``.
 """
 
 from __future__ import annotations
@@ -47,6 +50,8 @@ from ..ensemble._noise import white_noise
 from ..models._params import HalfCarParams, random_perturbed_models
 from ..models._road import WheelInputs, iso8608_road
 from ..solvers._solve import solve_ode
+from ._paper_plots import solver_table_markdown, write_paper_outputs
+from ._paper_summary import _summarise, drift_off_time
 
 __all__ = [
     "SolverSpec",
@@ -62,6 +67,8 @@ __all__ = [
     "run_force_paths",
     "run_pitch_paths",
     "run_paper_study",
+    "write_paper_outputs",  # from _paper_plots
+    "solver_table_markdown",  # from _paper_plots
 ]
 
 
@@ -331,14 +338,6 @@ def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSigna
     return sol, lam, params.I * b[:, 2]
 
 
-def drift_off_time(ts, error, threshold) -> float:
-    """First time in ``ts`` where ``|error| > threshold`` (or is not finite); ``inf`` if never."""
-    ts, error = np.asarray(ts), np.asarray(error)
-    bad = ~(np.abs(error) <= threshold)
-    return float(ts[np.argmax(bad)]) if bad.any() else math.inf
-
-
-
 def _noisy_forces(forces, t0, dt, key, idx, sigma) -> SampledSignal:
     """Path ``idx``'s measured forces: ``forces`` plus white noise of std ``sigma`` on both channels."""
     v = forces + white_noise(key, idx, forces.shape[0], jnp.stack([sigma, sigma]), dtype=forces.dtype)
@@ -440,33 +439,6 @@ def _unstack(models: HalfCarParams) -> list[HalfCarParams]:
     return [HalfCarParams(**{k: float(np.asarray(getattr(models, k))[i]) for k in names}) for i in range(n)]
 
 
-def _stats(x) -> dict:
-    x = np.asarray(x, dtype=float)
-    fin = x[np.isfinite(x)]
-    out = dict(n=int(x.size), n_never=int(np.count_nonzero(~np.isfinite(x))))
-    if fin.size:
-        # quantiles without interpolation, so "never" (inf) paths count as the latest times
-        def q(level):
-            return float(np.quantile(x, level, method="inverted_cdf"))
-
-        out.update(min=float(fin.min()), median=q(0.5), max=float(fin.max()), q10=q(0.1), q90=q(0.9))
-    else:
-        out.update(min=None, median=None, max=None, q10=None, q90=None)
-    return out
-
-
-def _json_float(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None if math.isnan(v) else ("inf" if v > 0 else "-inf")
-    return v
-
-
-def _range(x) -> dict:
-    x = np.asarray(x, dtype=float)
-    return dict(min=float(x.min()), max=float(x.max()), abs_max=float(np.abs(x).max()),
-                rms=float(np.sqrt(np.mean(x**2))))
-
-
 def run_paper_study(cfg: StudyConfig, log: Callable[[str], None] = print) -> dict:
     """Run steps 1-5 of the paper's section 4.1 and the extra studies; return all results.
 
@@ -560,324 +532,3 @@ def run_paper_study(cfg: StudyConfig, log: Callable[[str], None] = print) -> dic
     return dict(cfg=cfg, vm=vm, save_ts=save_ts, beta_ref=beta_ref, z3_ref=z3_ref, sigma=sigma, main=main,
                 kinds=kinds_arr, stab=stab, stab_kinds=st_kinds, moment_ts=moment_ts, comparisons=comparisons,
                 summary=summary)
-
-
-def _summarise(cfg, vm, save_ts, beta_ref, z3_ref, sigma, fmax, main, kinds, stab, st_kinds, comparisons, n_cmp, road):
-    thr = math.radians(cfg.drift_threshold_deg)
-    beta = main.ys[:, :, 1]
-    z3 = main.ys[:, :, 0]
-    eb = beta - beta_ref[None, :]
-    ez = z3 - z3_ref[None, :]
-
-    def doff(rows, threshold=thr, err=eb):
-        return np.array([drift_off_time(save_ts, err[r], threshold) for r in rows])
-
-    def rows(kind):
-        return np.flatnonzero(kinds == kind)
-
-    groups = ("undisturbed", "perturbed_paper", "noisy", "perturbed_random")
-    drift = {}
-    for g in groups:
-        d = doff(rows(g))
-        drift[g] = float(d[0]) if d.size == 1 else _stats(d)
-    by_thr = {}
-    for t_deg in (0.5, 1.0, 2.0, 5.0):
-        by_thr[f"{t_deg:g}"] = {
-            g: (float(doff(rows(g), math.radians(t_deg))[0]) if rows(g).size == 1
-                else _stats(doff(rows(g), math.radians(t_deg))))
-            for g in groups
-        }
-    z3_drift = {}
-    for g in groups:
-        d = doff(rows(g), cfg.z3_threshold, ez)
-        z3_drift[g] = float(d[0]) if d.size == 1 else _stats(d)
-    end_err = {
-        g: dict(beta_deg_rms=float(np.degrees(np.sqrt(np.mean(eb[rows(g), -1] ** 2)))),
-                z3_m_rms=float(np.sqrt(np.mean(ez[rows(g), -1] ** 2))))
-        for g in groups
-    }
-
-    # stabilised: enforced moment and inertia term
-    lam = stab.ys[:, :, 1]
-    inertia = stab.ys[:, :, 2]
-    moment = {k: _range(lam[st_kinds == k]) for k in dict.fromkeys(st_kinds)}
-    moment["inertia_term"] = _range(inertia[0])
-
-    # pitch spring (the first row, stiffness 0, is the free model on the same noise samples)
-    spring = []
-    n_sp = int(np.count_nonzero(kinds == f"spring_{cfg.pitch_spring_stiffness[0]:g}")) if cfg.pitch_spring_stiffness else 0
-    if n_sp:
-        r = rows("noisy")[:n_sp]
-        e = eb[r]
-        spring.append(dict(
-            stiffness=0.0, damping=0.0,
-            pitch_error_rms_deg=float(np.degrees(np.sqrt(np.mean(e**2)))),
-            pitch_error_max_deg=float(np.degrees(np.max(np.abs(e)))),
-            drift_off_s=_stats(doff(r)), reaction_torque_max=0.0, reaction_torque_rms=0.0,
-        ))
-    for k in cfg.pitch_spring_stiffness:
-        r = rows(f"spring_{k:g}")
-        e = eb[r]
-        tq = main.ys[r, :, 2]
-        spring.append(dict(
-            stiffness=float(k), damping=float(2 * math.sqrt(k * float(cfg.params.pitch_inertia_whole))),
-            pitch_error_rms_deg=float(np.degrees(np.sqrt(np.mean(e**2)))),
-            pitch_error_max_deg=float(np.degrees(np.max(np.abs(e)))),
-            drift_off_s=_stats(doff(r)),
-            reaction_torque_max=float(np.max(np.abs(tq))),
-            reaction_torque_rms=float(np.sqrt(np.mean(tq**2))),
-        ))
-
-    # solver comparison: path 0 undisturbed, 1 paper-perturbed, then the first n_cmp noise samples
-    noisy_rows = rows("noisy")[:n_cmp]
-    table = []
-    for name, res in comparisons.items():
-        b = res.ys[:, :, 1] - beta_ref[None, :]
-        if res is main:
-            und, per, noisy = b[rows("undisturbed")[0]], b[rows("perturbed_paper")[0]], b[noisy_rows]
-        else:
-            und, per, noisy = b[0], b[1], b[2:2 + n_cmp]
-        table.append(dict(
-            solver=name,
-            undisturbed_drift_off_s=drift_off_time(save_ts, und, thr),
-            undisturbed_pitch_error_end_deg=float(np.degrees(abs(und[-1]))),
-            perturbed_paper_drift_off_s=drift_off_time(save_ts, per, thr),
-            noisy_drift_off_s=[drift_off_time(save_ts, e, thr) for e in noisy],
-            noisy_pitch_error_end_deg=[float(np.degrees(abs(e[-1]))) for e in noisy],
-            failed_paths=int(res.n_failed),
-        ))
-
-    zeta = np.asarray(vm.zeta)
-    summary = dict(
-        config=dict(
-            duration_s=cfg.duration, speed_m_s=cfg.speed, road_class=cfg.road_class, road_seed=cfg.road_seed,
-            hill_height_m=cfg.hill_height, hill_wavelength_m=cfg.hill_wavelength, sample_rate_hz=cfg.sample_rate,
-            noise_rel=cfg.noise_rel, n_noise=cfg.n_noise, n_models=cfg.n_models, n_compare=n_cmp, seed=cfg.seed,
-            solver=dataclasses.asdict(cfg.solver), params=cfg.params.to_dict(),
-            drift_threshold_deg=cfg.drift_threshold_deg, z3_threshold_m=cfg.z3_threshold, linear=cfg.linear,
-        ),
-        measurement=dict(
-            force_min_N=float(jnp.min(vm.forces)), force_max_N=float(jnp.max(vm.forces)), f_max_N=fmax,
-            sigma_N=sigma, zeta_min_m=float(zeta.min()), zeta_max_m=float(zeta.max()),
-            beta_range_deg=[float(np.degrees(vm.x[:, 3].min())), float(np.degrees(vm.x[:, 3].max()))],
-        ),
-        drift_definition=(
-            f"drift-off time = first save time where |beta_sim - beta_measured| > {cfg.drift_threshold_deg} deg "
-            f"(z3: |z3_sim - z3_measured| > {cfg.z3_threshold} m); 'inf' = never within the run"
-        ),
-        drift_off_beta_s=drift,
-        drift_off_beta_s_by_threshold_deg=by_thr,
-        drift_off_z3_s=z3_drift,
-        error_at_end=end_err,
-        enforced_moment_Nm=moment,
-        pitch_spring=spring,
-        solver_comparison=table,
-        failed_paths=dict(force=int(main.n_failed), stabilised=int(stab.n_failed)),
-    )
-    return _clean(summary)
-
-
-def _clean(obj):
-    if isinstance(obj, dict):
-        return {k: _clean(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_clean(v) for v in obj]
-    if isinstance(obj, (np.floating, np.integer)):
-        obj = obj.item()
-    if isinstance(obj, float):
-        return _json_float(obj)
-    return obj
-
-
-# ---------------------------------------------------------------------------------------------
-# figures and files
-# ---------------------------------------------------------------------------------------------
-def _fmt_t(v) -> str:
-    if v is None or v == "inf" or (isinstance(v, float) and not math.isfinite(v)):
-        return "> run"
-    return f"{v:.2f}"
-
-
-def solver_table_markdown(summary: dict) -> str:
-    """The solver/tolerance comparison as a markdown table."""
-    thr = summary["config"]["drift_threshold_deg"]
-    lines = [
-        f"Drift-off time [s] of beta (|beta - beta_measured| > {thr:g} deg); '> run' = never within the run.",
-        "",
-        "| solver | undisturbed | pitch error at end, undisturbed [deg] | paper-perturbed model | noisy: median | noisy: each sample |",
-        "|---|---|---|---|---|---|",
-    ]
-    for row in summary["solver_comparison"]:
-        noisy = [float("inf") if v == "inf" else v for v in row["noisy_drift_off_s"]]
-        med = float(np.quantile(np.asarray(noisy, dtype=float), 0.5, method="inverted_cdf"))
-        lines.append(
-            f"| {row['solver']} | {_fmt_t(row['undisturbed_drift_off_s'])} | "
-            f"{row['undisturbed_pitch_error_end_deg']:.3f} | {_fmt_t(row['perturbed_paper_drift_off_s'])} | "
-            f"{_fmt_t(med)} | {', '.join(_fmt_t(v) for v in noisy)} |"
-        )
-    return "\n".join(lines) + "\n"
-
-
-def write_paper_outputs(res: dict, out_dir, dpi: int = 90) -> list[str]:
-    """Write figures 4-8 (+ pitch spring), ``summary.json`` and ``solver_comparison.md``.
-
-    Files are written to a temporary folder inside ``out_dir`` first and moved into place at the
-    end, so an interrupted run leaves no half-written set. Returns the written file names.
-    """
-    import json
-    import os
-    import shutil
-    import tempfile
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    os.makedirs(out_dir, exist_ok=True)
-    tmp = tempfile.mkdtemp(prefix=".paper-", dir=out_dir)
-    try:
-        files = _write_all(res, tmp, dpi, plt)
-        for name in files:
-            os.replace(os.path.join(tmp, name), os.path.join(out_dir, name))
-    finally:
-        shutil.rmtree(tmp, ignore_errors=True)
-    return files
-
-
-def _band(ax, ts, ys, ref, color, label, n_show=8, scale=1.0):
-    q05, q50, q95 = np.quantile(ys * scale, [0.05, 0.5, 0.95], axis=0)
-    ax.fill_between(ts, q05, q95, color=color, alpha=0.2, lw=0, label=f"{label}: 5-95 % band")
-    for i in range(min(n_show, ys.shape[0])):
-        ax.plot(ts, ys[i] * scale, color=color, lw=0.6, alpha=0.7, label=f"{label}: samples" if i == 0 else None)
-    ax.plot(ts, ref * scale, color="k", lw=1.2, label="virtual measurement")
-
-
-def _write_all(res, d, dpi, plt):
-    import json
-    import os
-
-    cfg, vm, ts = res["cfg"], res["vm"], res["save_ts"]
-    s = res["summary"]
-    main, kinds = res["main"], res["kinds"]
-    vts = np.asarray(vm.ts)
-    beta_ref, z3_ref = res["beta_ref"], res["z3_ref"]
-    deg = 180.0 / np.pi
-    files = []
-
-    def save(fig, name):
-        fig.tight_layout()
-        fig.savefig(os.path.join(d, name), dpi=dpi)
-        plt.close(fig)
-        files.append(name)
-
-    def rows(kind):
-        return np.flatnonzero(kinds == kind)
-
-    # Fig. 4: road and wheel forces
-    fig, ax = plt.subplots(3, 1, figsize=(8, 7), gridspec_kw=dict(height_ratios=[2, 1.2, 2]))
-    zeta = np.asarray(vm.zeta)
-    ax[0].plot(vts, zeta[:, 0], lw=0.8, label=r"$\zeta_1$ (front)")
-    ax[0].plot(vts, zeta[:, 1], lw=0.8, label=r"$\zeta_2$ (rear)")
-    ax[0].set_ylabel(r"road $\zeta$ [m] (z down)")
-    ax[0].legend(loc="upper right")
-    ax[0].set_title(f"ISO 8608 class {cfg.road_class} road with hills at {cfg.speed:g} m/s")
-    t_lo = min(2.0, 0.5 * float(vts[-1]))
-    m = (vts >= t_lo) & (vts <= t_lo + 1.0)
-    ax[1].plot(vts[m], zeta[m, 0], lw=0.8)
-    ax[1].plot(vts[m], zeta[m, 1], lw=0.8)
-    ax[1].set_ylabel(r"$\zeta$ [m] (detail)")
-    f = np.asarray(vm.forces)
-    ax[2].plot(vts, f[:, 0] / 1e3, lw=0.5, label="$f_1$")
-    ax[2].plot(vts, f[:, 1] / 1e3, lw=0.5, label="$f_2$", alpha=0.8)
-    ax[2].set_ylabel("wheel force [kN]")
-    ax[2].legend(loc="upper right")
-    for a in ax:
-        a.set_xlabel("t [s]")
-    save(fig, "fig4_road_forces.png")
-
-    # Fig. 5: z3 and beta for each step
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4))
-    series = [("virtual measurement", None, "k"), ("undisturbed forces", rows("undisturbed")[0], "C0"),
-              ("noisy forces (one sample)", rows("noisy")[0], "C3"),
-              ("perturbed model (paper's)", rows("perturbed_paper")[0], "C2")]
-    for label, r, c in series:
-        z = z3_ref if r is None else main.ys[r, :, 0]
-        b = beta_ref if r is None else main.ys[r, :, 1]
-        ax[0].plot(ts, z, color=c, lw=1.0, label=label)
-        ax[1].plot(ts, b * deg, color=c, lw=1.0, label=label)
-    ax[0].set_ylabel("$z_3$ [m] (down)")
-    ax[1].set_ylabel(r"$\beta$ [deg]")
-    lim = max(10.0, 2.0 * np.max(np.abs(beta_ref)) * deg)
-    ax[1].set_ylim(-lim, lim)
-    for a in ax:
-        a.set_xlabel("t [s]")
-    ax[1].legend(fontsize=7, loc="upper left")
-    ax[0].set_title("vertical chassis motion")
-    ax[1].set_title(f"pitch (drift-off: |error| > {cfg.drift_threshold_deg:g} deg)")
-    save(fig, "fig5_z3_beta.png")
-
-    # Fig. 6 / 7: bands over noise samples and perturbed models
-    for name, kind, color, title in (("fig6_noise_samples.png", "noisy", "C3", "noise samples"),
-                                     ("fig7_perturbed_models.png", "perturbed_random", "C2", "perturbed models")):
-        r = rows(kind)
-        fig, ax = plt.subplots(1, 2, figsize=(10, 4))
-        _band(ax[0], ts, main.ys[r, :, 0], z3_ref, color, title)
-        _band(ax[1], ts, main.ys[r, :, 1], beta_ref, color, title, scale=deg)
-        ax[0].set_ylabel("$z_3$ [m] (down)")
-        ax[1].set_ylabel(r"$\beta$ [deg]")
-        ax[1].set_ylim(-lim, lim)
-        for a in ax:
-            a.set_xlabel("t [s]")
-        ax[1].legend(fontsize=7, loc="upper left")
-        ax[0].set_title(f"$z_3$ over {len(r)} {title}")
-        ax[1].set_title(rf"$\beta$ over {len(r)} {title}")
-        save(fig, name)
-
-    # Fig. 8: inertia term and enforced moment
-    stab, sk, mts = res["stab"], res["stab_kinds"], res["moment_ts"]
-    i_pn = np.flatnonzero(sk == "perturbed_noisy")[0]
-    i_uu = np.flatnonzero(sk == "unperturbed_undisturbed")[0]
-    fig, ax = plt.subplots(1, 2, figsize=(10, 4), sharex=True)
-    ax[0].plot(mts, stab.ys[i_pn, :, 2] / 1e3, lw=0.5, color="C0")
-    ax[0].set_ylabel(r"inertia term $I\ddot\beta$ [kNm]")
-    ax[0].set_title(r"inertia term $I\ddot\beta$")
-    ax[1].plot(mts, stab.ys[i_pn, :, 1], lw=0.5, color="C3", label="perturbed model, noisy forces")
-    ax[1].plot(mts, stab.ys[i_uu, :, 1], lw=0.5, color="k", label="original model, undisturbed forces")
-    ax[1].set_ylabel(r"enforced moment $\lambda$ [Nm]")
-    ax[1].set_title(r"enforced moment $\lambda = I\ddot\beta - \cos\beta\,(b f_3 - a f_4)$")
-    ax[1].legend(fontsize=7, loc="upper left")
-    for a in ax:
-        a.set_xlabel("t [s]")
-    save(fig, "fig8_enforced_moment.png")
-
-    # pitch spring trade-off
-    sp = [r for r in s["pitch_spring"] if r["stiffness"] > 0]
-    free = [r for r in s["pitch_spring"] if r["stiffness"] == 0]
-    if sp:
-        k = np.array([r["stiffness"] for r in sp])
-        fig, ax = plt.subplots(1, 1, figsize=(6, 4))
-        ax.loglog(k, [r["pitch_error_rms_deg"] for r in sp], "o-", color="C0", label="pitch error RMS [deg]")
-        ax.loglog(k, [r["pitch_error_max_deg"] for r in sp], "s--", color="C0", alpha=0.6,
-                  label="pitch error max [deg]")
-        if free:
-            ax.axhline(free[0]["pitch_error_rms_deg"], color="C0", lw=0.8, ls=":",
-                       label="pitch error RMS without spring [deg]")
-        ax.set_xlabel("rotational spring stiffness [Nm/rad] (critically damped)")
-        ax.set_ylabel("pitch error [deg]", color="C0")
-        ax2 = ax.twinx()
-        ax2.loglog(k, [r["reaction_torque_max"] for r in sp], "^-", color="C3", label="reaction torque max [Nm]")
-        ax2.set_ylabel("reaction torque max [Nm]", color="C3")
-        ax.set_title("section 3, approach 1: pitch spring to ground (noisy forces)")
-        h1, l1 = ax.get_legend_handles_labels()
-        h2, l2 = ax2.get_legend_handles_labels()
-        ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper center")
-        save(fig, "fig_pitch_spring.png")
-
-    with open(os.path.join(d, "summary.json"), "w") as fh:
-        json.dump(s, fh, indent=2)
-    files.append("summary.json")
-    with open(os.path.join(d, "solver_comparison.md"), "w") as fh:
-        fh.write(solver_table_markdown(s))
-    files.append("solver_comparison.md")
-    return files

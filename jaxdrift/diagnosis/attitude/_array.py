@@ -4,7 +4,10 @@ Per sample, the rigid-body model ``a_i = c + (alpha~ + W) r_i`` with ``W = omega
 gyro (bias-corrected for its noise) is fitted for ``c`` and ``alpha``; what is left is the rigidity
 residual (:func:`array_residual`). Sensor position corrections (and, without another bias source,
 gyro biases through ``W``) are fitted by Gauss-Newton with block-sandwich covariances
-(:func:`array_fit`). :func:`array_step` is the pipeline step that turns them into findings.
+(:func:`array_fit`). The rigidity residual is split by its character in time: its white part
+(:func:`white_rigidity_power`) is the gyro noise through ``W`` (:func:`gyro_noise_power`) plus
+``accel_noise``; the rest is ``nonrigid`` (docs/attitude.md, "Accelerometer noise and
+non-rigidity"). :func:`array_step` is the pipeline step that turns them into findings.
 """
 
 from __future__ import annotations
@@ -17,7 +20,7 @@ from scipy import stats
 from ...models._quaternion import skew_np
 from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_CHI2, Z_SIGNIFICANT, finding, fmt
 
-__all__ = ["array_residual", "array_fit", "rigidity_rms", "array_step"]
+__all__ = ["array_residual", "array_fit", "rigidity_rms", "gyro_noise_power", "white_rigidity_power", "array_step"]
 
 
 def array_residual(acc, r, W):
@@ -119,6 +122,111 @@ def rigidity_rms(resid, N, blocks):
     return m, se, len(blocks)
 
 
+def _block_power(resid, N, blocks):
+    """Mean residual power per degree of freedom (3N - 6) in each block of samples."""
+    e = np.sum(resid**2, axis=(1, 2)) / (3 * N - 6)
+    n = len(e)
+    return np.array([e[b[b < n]].mean() for b in blocks])
+
+
+def _mean_se(per_block):
+    return float(per_block.mean()), float(per_block.std(ddof=1) / np.sqrt(len(per_block)))
+
+
+def gyro_noise_power(w_prev, w_next, sigma, r, n_draws: int = 4000):
+    """Expected power per degree of freedom, per sample, of the rigidity residual that white gyro
+    noise of per-sample std ``sigma`` (per axis) makes through ``W = omega~ omega~``.
+
+    To first order the noise ``eps`` adds ``(omega~ eps~ + eps~ omega~) r_i``, a quadratic form in the
+    true rate. The measured rate carries the noise itself (its square would overstate the power by
+    ``sigma^2`` terms), so the form is evaluated with the rates of the two neighbouring samples,
+    ``L omega_{k-1} . L omega_{k+1}``, whose noises are independent (unbiased up to the rate's
+    curvature over two steps). The second-order term ``eps~ eps~ - E[eps~ eps~]`` does not depend on
+    the rate; its power is averaged over ``n_draws`` seeded draws.
+    """
+    N = r.shape[0]
+    dof = 3 * N - 6
+    sigma = np.asarray(sigma, float)
+    zero = np.zeros((len(w_prev), 3, 3))
+    e = np.zeros(len(w_prev))
+    if not np.any(sigma > 0):
+        return e
+    for k in range(3):
+        if sigma[k] == 0:
+            continue
+        ek = skew_np(np.eye(3)[k])
+
+        def first_order(om):
+            M = skew_np(om) @ ek + ek @ skew_np(om)
+            return array_residual(np.einsum("nab,kb->nka", M, r), r, zero)
+
+        e += sigma[k] ** 2 * np.sum(first_order(w_prev) * first_order(w_next), axis=(1, 2)) / dof
+    eps = np.random.default_rng(0).normal(size=(n_draws, 3)) * sigma
+    D = skew_np(eps) @ skew_np(eps) + np.diag([sigma[1] ** 2 + sigma[2] ** 2, sigma[0] ** 2 + sigma[2] ** 2,
+                                                 sigma[0] ** 2 + sigma[1] ** 2])
+    second = array_residual(np.einsum("nab,kb->nka", D, r), r, np.zeros((n_draws, 3, 3)))
+    return e + float(np.mean(np.sum(second**2, axis=(1, 2)))) / dof
+
+
+def white_rigidity_power(resid, N, blocks, max_order: int = 8):
+    """White (temporally uncorrelated) part of the rigidity residual's power per degree of freedom.
+
+    The k-th difference in time of a white series has ``C(2k, k)`` times its variance, while a
+    deformation (or any motion) that is smooth at the sampling rate is damped by
+    ``(2 sin(pi f dt))^(2k)``. As for the gyro (:func:`jaxdrift.diagnosis.attitude._noise.estimate_white_noise`)
+    the order is raised until two consecutive orders agree within 3 standard errors (standard errors
+    from the blocks of samples). Returns ``power`` (its mean), ``se``, ``per_block``, ``order`` and
+    ``plateau`` (False: no two orders agreed, ``power`` is the smallest, an upper bound).
+    """
+    dof = 3 * N - 6
+    ests = []
+    for k in range(1, max_order + 1):
+        if resid.shape[0] - k < 4 * len(blocks):
+            break
+        d = np.diff(resid, k, axis=0)
+        e = np.sum(d**2, axis=(1, 2)) / (math.comb(2 * k, k) * dof)
+        pb = np.array([e[b[b < len(e)]].mean() for b in blocks])
+        m, se = _mean_se(pb)
+        ests.append((k, m, se, pb))
+    chosen = None
+    for (k, m, se, _), nxt in zip(ests[:-1], ests[1:]):
+        if abs(m - nxt[1]) <= 3.0 * max(se, nxt[2]) + 1e-300:
+            chosen = nxt
+            break
+    plateau = chosen is not None
+    if chosen is None:
+        chosen = min(ests, key=lambda e: e[1])
+    k, m, se, pb = chosen
+    return {"power": m, "se": se, "per_block": pb, "order": k, "plateau": plateau}
+
+
+def _accel_noise_finding(s, acc_var, acc_se, tq, wp, m_gn):
+    """``accel_noise``: the white part of the rigidity residual beyond what the gyro noise explains,
+    reported where it is 3 standard errors above zero and above the rounding of the file's digits."""
+    floor = max(3.0 * s.run.get("acc_quantisation", 0.0), 1e-12)
+    if not (wp["plateau"] and acc_var > 3.0 * acc_se and math.sqrt(max(acc_var, 0.0)) > floor):
+        if not wp["plateau"]:
+            s.notes.append("the rigidity residual never became white under differencing: accelerometer noise not separable")
+        else:
+            s.notes.append(
+                f"no accelerometer noise found: the white part of the rigidity residual, {fmt(math.sqrt(wp['power']))} "
+                f"m/s^2 RMS per degree of freedom, is what the gyro noise explains ({fmt(math.sqrt(m_gn))}) or below "
+                "the rounding of the file")
+        return
+    est = math.sqrt(acc_var)
+    lo = math.sqrt(max(acc_var - tq * acc_se, 0.0))
+    hi = math.sqrt(acc_var + tq * acc_se)
+    s.noise_findings.append({
+        "cause": "accel_noise", "estimate": est, "unit": "m/s^2", "interval": [lo, hi],
+        "evidence": (
+            f"order-{wp['order']} differences of the array's rigidity residual are white with "
+            f"{fmt(math.sqrt(wp['power']))} m/s^2 RMS per degree of freedom; gyro noise through omega~ omega~ "
+            f"accounts for {fmt(math.sqrt(m_gn))}, the rest in quadrature is accelerometer noise of {fmt(est)} "
+            "m/s^2 per axis"
+        ),
+    })
+
+
 # --------------------------------------------------------------------------- pipeline step
 
 
@@ -137,7 +245,7 @@ def array_step(s):
     pos_corr = _position_corrections(s, af, positions, excluded, pos_found, fit_bias)
     if fit_bias:
         _array_gyro_biases(s, af, N, tq)
-    _rigidity(s, af, positions, pos_corr, fit_bias)
+    _rigidity(s, af, positions, pos_corr, fit_bias, w_use)
 
 
 def _W_of(af):
@@ -225,41 +333,53 @@ def _array_gyro_biases(s, af, N, tq):
     s.observed.append("gyro biases through the array's centripetal terms")
 
 
-def _rigidity(s, af, positions, pos_corr, fit_bias):
-    """Rigidity residual after the reported corrections, less the share the gyro noise explains."""
+def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
+    """Rigidity residual after the reported corrections, split into its white part (gyro noise
+    through ``W`` plus accelerometer noise: ``accel_noise``) and the rest (``nonrigid``)."""
     N = positions.shape[0]
+    blocks = af["blocks"]
     W_of = _W_of(af)
     b_rep = np.array([s.corrections[c]["bias"] if s.bias_source == "array" else 0.0 for c in CHANNELS])
     resid_after = array_residual(af["A"], positions + pos_corr, W_of(af["wbar"] - b_rep))
-    m2, se2, nb2 = rigidity_rms(resid_after, N, af["blocks"])
+    m2, _, nb2 = rigidity_rms(resid_after, N, blocks)
     resid_raw = array_residual(af["A"], positions, W_of(af["wbar"])) if fit_bias else af["resid_before"]
-    m2raw, _, _ = rigidity_rms(resid_raw, N, af["blocks"])
-    # the part of the residual that the gyro noise alone explains (W from noisy rates)
-    rng = np.random.default_rng(0)
-    eps = rng.normal(size=af["wbar"].shape) * s.sigma_axis
-    om = af["wbar"]
-    dW = skew_np(om + eps) @ skew_np(om + eps) - skew_np(om) @ skew_np(om)
+    m2raw, _, _ = rigidity_rms(resid_raw, N, blocks)
+    # the part of the residual that the gyro noise alone explains (W from noisy rates), per sample
     r_fit = positions + pos_corr
-    gn = array_residual(np.einsum("nab,kb->nka", dW, r_fit), r_fit, np.zeros_like(dW))
-    m_gn, _, _ = rigidity_rms(gn, N, af["blocks"])
-    nr2 = max(m2 - m_gn, 0.0)
+    idx = af["idx"]
+    e_gn = gyro_noise_power(w_use[idx - 1] - b_rep, w_use[idx + 1] - b_rep, s.sigma_axis, r_fit)
+    wp = white_rigidity_power(resid_after, N, blocks)
+    tq2 = stats.t.ppf(0.975, nb2 - 1)
+    # per block: total power, white power, gyro-noise power; differences taken block by block
+    pb_total = _block_power(resid_after, N, blocks)
+    pb_gn = np.array([e_gn[b].mean() for b in blocks])
+    m_gn = float(pb_gn.mean())
+    acc_var, acc_se = _mean_se(wp["per_block"] - pb_gn)
+    nr2_raw, nr_se = _mean_se(pb_total - wp["per_block"])
+    nr2 = max(nr2_raw, 0.0)
     nr = math.sqrt(nr2)
-    s.sim_err["rigidity_residual"] = {"rms": float(math.sqrt(m2raw)), "unit": "m/s^2",
-                                      "what": "RMS per residual degree of freedom of the rigid-body fit of the array with the given positions"}
-    if nr > NONRIGID_FLOOR and nr2 > 5.0 * se2:
-        tq2 = stats.t.ppf(0.975, nb2 - 1)
+    s.sim_err["rigidity_residual"] = {
+        "rms": float(math.sqrt(m2raw)), "unit": "m/s^2",
+        "what": "RMS per residual degree of freedom of the rigid-body fit of the array with the given positions",
+        "rms_after_corrections": float(math.sqrt(m2)),
+        "white_rms": float(math.sqrt(wp["power"])), "white_order": int(wp["order"]), "white_plateau": bool(wp["plateau"]),
+        "gyro_noise_rms": float(math.sqrt(m_gn)),
+    }
+    _accel_noise_finding(s, acc_var, acc_se, tq2, wp, m_gn)
+    if nr > NONRIGID_FLOOR and nr2 > 5.0 * nr_se:
         # statistical interval of the residual power, then the unidentifiable share: the part of a
         # deformation that looks like rigid motion is absorbed by the fit. The estimate assumes an
         # isotropic deformation ((3N - 6) of 3N degrees of freedom seen); the interval spans from
         # "nothing hidden" (factor sqrt((3N-6)/3N)) to twice the isotropic hidden share.
         frac = (3 * N - 6) / (3 * N)
-        lo = math.sqrt(max(nr2 - tq2 * se2, 0.0) * frac)
-        hi = math.sqrt((nr2 + tq2 * se2) * (1.0 + 2.0 * (1.0 - frac)) / 1.0)
+        lo = math.sqrt(max(nr2 - tq2 * nr_se, 0.0) * frac)
+        hi = math.sqrt((nr2 + tq2 * nr_se) * (1.0 + 2.0 * (1.0 - frac)) / 1.0)
         s.findings.append(finding(
             "nonrigid", nr, "m/s^2", [lo, hi],
-            f"the array's accelerations depart from the best rigid-body motion by {fmt(nr)} m/s^2 RMS per "
-            f"degree of freedom (gyro noise accounts for {fmt(math.sqrt(m_gn))})",
-            nr2 / max(se2, 1e-300), ))
+            f"after the reported corrections the array's accelerations depart from the best rigid-body motion "
+            f"by {fmt(math.sqrt(m2))} m/s^2 RMS per degree of freedom, of which {fmt(math.sqrt(wp['power']))} is white "
+            f"(noise); the rest, {fmt(nr)} m/s^2, is correlated in time (a deformation)",
+            nr2 / max(nr_se, 1e-300), ))
     if s.gain is None:
         s.gain = {"metric": "rigidity_residual_rms", "before": float(math.sqrt(m2raw)), "after": float(math.sqrt(m2)), "unit": "m/s^2"}
     s.plots["array"] = (s.t[af["idx"]], np.sqrt(np.sum(resid_raw**2, axis=(1, 2)) / (3 * N - 6)),

@@ -71,6 +71,7 @@ class AttitudeState:
     sigma_axis: np.ndarray | None = None
     noise_var_rate: float = 0.0
     noise_finding: dict | None = None
+    noise_findings: list = field(default_factory=list)  # further noise findings (accel_noise), after gyro_noise
     scale_floor: float = 0.0
     bias_floor: float = 0.0
     drift_floor: float = 0.0
@@ -267,8 +268,8 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             b0, b0_se = d["beta"], math.sqrt(d["beta_var"])
             s.findings.append(finding(
                 "gyro_bias_drift", d["K"], "rad/s/sqrt(s)", [float(v) for v in d["interval"]],
-                f"the {ch} bias over {M} segments wanders like a random walk (REML likelihood ratio "
-                f"{fmt(d['lr'])} against a constant bias)",
+                f"the {ch} bias over {M} segments wanders like a random walk of intensity {fmt(d['K'])} "
+                f"rad/s/sqrt(s) (REML likelihood ratio {fmt(d['lr'])} against a constant bias)",
                 math.sqrt(max(d["lr"], 0.0)), channel=ch))
             s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
             s.corrections[ch]["bias_drift"] = float(d["K"])

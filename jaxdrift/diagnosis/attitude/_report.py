@@ -1,7 +1,8 @@
 """The attitude report: ranking of the findings, the report dict, and the figures.
 
 Systematic findings are ranked by their statistic (z or its equivalent), largest first; white
-noise (``gyro_noise``) is listed after them; a run without either reports ``none``.
+noise (``gyro_noise``, then ``accel_noise``) is listed after them; a run without either reports
+``none``.
 """
 
 from __future__ import annotations
@@ -26,6 +27,7 @@ def assemble_report(s):
     ranked = [f for f, _ in findings]
     if s.noise_finding is not None:
         ranked.append(s.noise_finding)
+    ranked.extend(s.noise_findings)
     if not ranked:
         ranked = [{"cause": "none", "estimate": None, "unit": None, "interval": None,
                    "evidence": "no systematic effect and no white noise above the file's rounding"}]
