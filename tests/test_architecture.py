@@ -149,6 +149,9 @@ def violations(root: Path = ROOT) -> list[str]:
                 n = node.end_lineno - node.lineno + 1
                 if n > MAX_FUNCTION_LINES:
                     problems.append(f"{mod}:{node.name}: {n} lines (max {MAX_FUNCTION_LINES})")
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and node.name == "score_report":
+                problems.append(f"{mod}: the test-only report scorer ships in the library")
         layer = layer_of(mod)
         if layer == "top":
             continue
@@ -167,9 +170,6 @@ def violations(root: Path = ROOT) -> list[str]:
                 problems.append(f"{mod} ({layer}) imports {dep} ({dl})")
         for ext in sorted(external & FORBIDDEN_THIRD_PARTY.get(layer, set())):
             problems.append(f"{mod} ({layer}) imports {ext}")
-        for node in ast.walk(tree):
-            if isinstance(node, (ast.FunctionDef, ast.ClassDef)) and node.name == "score_report":
-                problems.append(f"{mod}: the test-only report scorer ships in the library")
     return problems
 
 
