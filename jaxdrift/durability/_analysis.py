@@ -17,6 +17,8 @@ import numpy as np
 from ..ensemble._montecarlo import monte_carlo
 from ..errors import InputError
 from ..io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
+from ..io._outputs import sha256_file
+from ..io._provenance import jaxdrift_version
 from ._damage import load_statistics, rainflow_cycles, pseudo_damage, range_histogram
 from ._derivative import filtered_derivatives, noise_level
 from ._variants import (OUTPUT_COLUMNS, SIMULATED, build_section_forces, integration_step,
@@ -234,8 +236,7 @@ def _ratios(damage: dict, ref: str) -> tuple[dict, dict]:
 
 def _sha256(run: VehicleRun) -> str:
     try:
-        with open(run.path, "rb") as fh:
-            return hashlib.sha256(fh.read()).hexdigest()
+        return sha256_file(run.path)
     except (OSError, TypeError):
         h = hashlib.sha256(np.ascontiguousarray(run.t).tobytes())
         for k in sorted(run.channels):
@@ -341,17 +342,8 @@ def durability_analysis(run: VehicleRun, model=None, *, paths: int = 64, basquin
                             histogram_edges=edges)
 
 
-def _version() -> str:
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("jaxdrift")
-    except PackageNotFoundError:  # running from a source tree that is not installed
-        return "unknown"
-
-
 def _provenance(run, p, report, started, options) -> dict:
-    return {"version": _version(), "input": str(run.path), "input_sha256": _sha256(run),
+    return {"version": jaxdrift_version(), "input": str(run.path), "input_sha256": _sha256(run),
             "samples": int(run.n), "sample_rate_hz": 1.0 / run.dt, "channels": sorted(run.channels),
             "model": p, "options": options,
             "extended_model": (report or {}).get("extended_model"),

@@ -45,6 +45,8 @@ import math
 import numpy as np
 from scipy import signal
 
+from ..diagnosis.vehicle._detectors import _diff_sigma
+
 __all__ = ["derivative", "noise_from_differences", "noise_from_spectrum", "noise_level", "choose_cutoff", "lowpass", "filtered_derivatives",
            "CUTOFF_FACTOR", "ORDER", "NOISE_FLOOR_RAD"]
 
@@ -59,13 +61,12 @@ NOISE_FLOOR_RAD = 1e-7
 
 
 def noise_from_differences(x) -> float:
-    """White-noise standard deviation of ``x`` from its 4th differences (robust scale)."""
+    """White-noise standard deviation of ``x`` from its 4th differences (robust scale): the
+    diagnosis's k-th difference estimator with k = 4."""
     x = np.asarray(x, dtype=float)
     if x.size < 8:
         return 0.0
-    d4 = np.diff(x, 4)
-    mad = np.median(np.abs(d4 - np.median(d4)))
-    return float(1.4826 * mad / np.sqrt(70.0))
+    return _diff_sigma(x, 4)
 
 
 def noise_from_spectrum(x, fs: float) -> float:

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import io
 import json
-import math
 import os
 
 import numpy as np
 
-from ..io._outputs import atomic_dir
+from ..io._outputs import atomic_dir, finite_json
 
 __all__ = ["write_outputs", "csv_columns", "OUTPUT_FILES"]
 
@@ -24,21 +23,6 @@ OUTPUT_FILES = ("durability.json", "section_forces.csv", "section_forces.png", "
                 "damage_ratio.png")
 COLORS = {"force_driven": "tab:red", "pitch_spring": "tab:orange", "stabilised": "tab:blue",
           "extended": "tab:green", "measured": "black"}
-
-
-def _finite(obj):
-    """Non-finite floats -> None, numpy scalars -> Python (strict JSON)."""
-    if isinstance(obj, dict):
-        return {str(k): _finite(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_finite(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _finite(obj.tolist())
-    if hasattr(obj, "item") and callable(obj.item):
-        obj = obj.item()
-    if isinstance(obj, float):
-        return obj if math.isfinite(obj) else None
-    return obj
 
 
 def csv_columns(res) -> dict:
@@ -158,7 +142,7 @@ def write_outputs(res, out_dir, *, window=None, dpi: int = 100, figures: bool = 
     All files are rendered in memory first; only then are they written, each atomically. Returns
     the paths written.
     """
-    blobs = {"durability.json": (json.dumps(_finite(res.summary), indent=1, allow_nan=False) + "\n").encode(),
+    blobs = {"durability.json": (json.dumps(finite_json(res.summary), indent=1, allow_nan=False) + "\n").encode(),
              "section_forces.csv": _csv_bytes(csv_columns(res))}
     if figures:
         import matplotlib
