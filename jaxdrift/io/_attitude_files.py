@@ -16,7 +16,7 @@ import numpy as np
 
 from ..errors import InputError, UsageError
 from ._runs import load_run
-from ._table import read_header_any
+from ._table import _printed_digits, read_header_any
 
 __all__ = ["read_attitude_run", "read_sensors", "RATE_COLUMNS", "QUATERNION_COLUMNS"]
 
@@ -82,20 +82,6 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
             "warnings": run.warnings, "info": run.info}
 
 
-def _decimal_step(s):
-    s = s.strip().lower()
-    mant, _, exp = s.partition("e")
-    e = int(exp) if exp else 0
-    dec = len(mant.partition(".")[2])
-    return 10.0 ** (e - dec)
-
-
-def _significant_digits(s):
-    """Significant digits written in a number's text ("0.00552004" -> 6, "-1.2e+03" -> 2)."""
-    mant = s.strip().lower().partition("e")[0].lstrip("+-").replace(".", "")
-    return len(mant.lstrip("0"))
-
-
 def _written_rounding_rms(lines, columns):
     """RMS rounding error of the cells of ``columns`` as written, robust to how they were printed.
 
@@ -120,8 +106,9 @@ def _written_rounding_rms(lines, columns):
                     cells.append((c, v))
         if not cells:
             continue
-        dec = np.array([_decimal_step(c) for c, _ in cells])
-        p = max(_significant_digits(c) for c, _ in cells)
+        digits = [_printed_digits(c, ".") for c, _ in cells]  # (significant digits, last exponent)
+        dec = np.array([10.0 ** last for _, last in digits])
+        p = max(sig for sig, _ in digits)
         mag = np.floor(np.log10(np.abs([v for _, v in cells])))
         steps.append(np.maximum(np.minimum(dec, 10.0 ** (mag - p + 1)), dec.min()))
     if not steps:
