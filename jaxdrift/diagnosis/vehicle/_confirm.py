@@ -32,8 +32,10 @@ def improvement(prob: _Problem, fit: Fit, i: int, res1=None) -> dict:
     r_without = pipe.residuals(p_o, corr_o)
     main = "moment" if "moment" in prob.names else next(nm for nm in prob.names if nm != "static")
     ch = _telling_channel(prob, r_without, res1, main)
-    a = r_without.channels[ch][:prob.rows[ch]]
-    b = res1.channels[ch][:prob.rows[ch]]
+    # the rows the fit uses (a low-passed channel's start is left out there, see limit_bands)
+    k = slice(prob.skip[ch], prob.skip[ch] + prob.rows[ch])
+    a = r_without.channels[ch][k]
+    b = res1.channels[ch][k]
     h = len(a) // 2
     return {"channel": ch, "without": _rms(a), "with": _rms(b),
             "halves": [(_rms(a[:h]), _rms(b[:h])), (_rms(a[h:]), _rms(b[h:]))]}

@@ -60,9 +60,10 @@ def _with(run: VehicleRun, cols: dict) -> VehicleRun:
     return VehicleRun(path=run.path, t=run.t, channels={**run.channels, **cols})
 
 
-def measure_motion_noise(prob) -> tuple[dict, dict]:
-    """Per measured motion column: ``{"sigma", "estimate", "share", "written", "floor"}``, and the
-    residual channels' responses to unit white noise on each column (``{(column, channel): r}``).
+def measure_motion_noise(prob) -> tuple[dict, dict, dict]:
+    """Per measured motion column: ``{"sigma", "estimate", "share", "written", "floor"}``, the
+    residual channels' responses to unit white noise on each column (``{(column, channel): r}``)
+    and their PSD per unit noise variance (``{(column, channel): (f, psd)}``).
 
     ``estimate``: the white noise per sample that, with white force noise, best explains the
     residual's top band beyond what is already attributed (the pitch and heave noise reaching the
@@ -75,7 +76,7 @@ def measure_motion_noise(prob) -> tuple[dict, dict]:
     out = {}
     names = [nm for nm in prob.names if nm in MOTION_COLUMN]
     if not names or n < 16 * 64:
-        return out, {}
+        return out, {}, {}
     rng = np.random.default_rng(20260)  # the probes: a fixed function of the run, not of a seed
     r0 = pipe.residuals(model, _ZERO).channels
     fs = 1.0 / pipe.h
@@ -130,4 +131,12 @@ def measure_motion_noise(prob) -> tuple[dict, dict]:
         found = z >= MOTION_NOISE_MIN_Z and (share >= MOTION_NOISE_MIN_SHARE or (fl > 0 and est >= FLOOR_FACTOR * fl))
         out[col] = {"sigma": est if found else 0.0, "estimate": est, "z": z,
                     "share": share, "written": written_noise_sigma(run[col]), "floor": fl}
-    return out, resp
+    # every column's noise reaches every channel (pitch noise moves the spring points by a sin(beta)):
+    # the PSD each channel gets from unit white noise on each column, for limit_bands
+    shapes = {}
+    for (col, nm), e in resp.items():
+        rows = prob.rows[nm]
+        nper = welch_segment(rows)
+        f = _welch(e[:rows], fs, nper)[0]
+        shapes[(col, nm)] = (f, shape(probes[col], e, nm, rows, nper))
+    return out, resp, shapes

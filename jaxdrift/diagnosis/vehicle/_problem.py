@@ -65,7 +65,7 @@ class _Problem:
         run = pipe.run
         h = pipe.h
         sig_f = max(_force_hf_noise(run)[0], NOISE_MIN_N)
-        self.motion_noise, self._motion_resp = measure_motion_noise(self)
+        self.motion_noise, self._motion_resp, shapes = measure_motion_noise(self)
         p = self.model
         gains = {"moment": lambda w: p["I"] * w * w, "heave": lambda w: p["m3"] * w * w,
                  "spring1": lambda w: np.abs(p["k3"] + 1j * w * p["d3"]),
@@ -76,12 +76,20 @@ class _Problem:
                 continue
             col, gain = MOTION_COLUMN[nm], gains[nm]
             sig_m = self.motion_noise.get(col, {}).get("sigma", 0.0)
-            if sig_m <= 0:
+            others = [(c2, self.motion_noise[c2]["sigma"]) for (c2, nm2) in shapes
+                      if nm2 == nm and c2 != col and self.motion_noise.get(c2, {}).get("sigma", 0.0) > 0]
+            if sig_m <= 0 and not others:
                 continue
             nfft = 1 << int(np.ceil(np.log2(max(4 * len(self.ir[(nm, "f1")][0]), 1024))))
             Hf = sum(np.abs(np.fft.rfft(self.ir[(nm, ch)][0], nfft)) ** 2 for ch in FORCE_CHANNELS)
             f = np.fft.rfftfreq(nfft, h)
-            bad = sig_m ** 2 * gain(2 * np.pi * f) ** 2 > self.MOTION_NOISE_SHARE * sig_f ** 2 * Hf
+            motion = sig_m ** 2 * gain(2 * np.pi * f) ** 2
+            for c2, s2 in others:
+                # noise found on another column reaching this channel (pitch noise moves the spring
+                # points): its PSD per unit variance against the force noise's, |H|^2 2/fs
+                fw, G = shapes[(c2, nm)]
+                motion = motion + s2 ** 2 * np.interp(f, fw, G) * (h / 2.0)
+            bad = motion > self.MOTION_NOISE_SHARE * sig_f ** 2 * Hf
             bad[0] = False
             if not np.any(bad):
                 continue

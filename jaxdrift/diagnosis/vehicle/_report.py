@@ -81,9 +81,9 @@ def _telling_channel(prob: "_Problem", before: "Residuals", after: "Residuals", 
     for nm in prob.names:
         if nm == "static":
             continue
-        rows = prob.rows[nm]
-        a = before.channels[nm][:rows] / prob.noise_std[nm]
-        b = after.channels[nm][:rows] / prob.noise_std[nm]
+        k = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
+        a = before.channels[nm][k] / prob.noise_std[nm]
+        b = after.channels[nm][k] / prob.noise_std[nm]
         drop = float(a @ a - b @ b)
         if drop > best_drop * 1.5 or (best == default and drop > best_drop):
             best, best_drop = nm, drop
@@ -92,8 +92,9 @@ def _telling_channel(prob: "_Problem", before: "Residuals", after: "Residuals", 
 
 
 def _kept(prob: "_Problem", res: "Residuals", nm: str) -> np.ndarray:
-    """The rows of channel ``nm`` the comparison uses (the record's end left out)."""
-    return res.channels[nm][:prob.rows[nm]]
+    """The rows of channel ``nm`` the comparison uses (the record's end, and a low-passed
+    channel's start, left out)."""
+    return res.channels[nm][prob.skip[nm]:prob.skip[nm] + prob.rows[nm]]
 
 
 def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
@@ -217,8 +218,8 @@ def identifiability_notes(prob: "_Problem", sel) -> list[str]:
              " (spring stiffness and damping barely change the spring forces the wheels pass on; "
              "measured spring travel s1/s2 would show them)") + ".")
     if len(sel.fit.r) > 2 and not run.has("z3"):
-        notes.append("Without z3 a chassis-mass error, a gravity error and equal offsets on both "
-                     "forces differ only in their small dynamic signature.")
+        notes.append("Without z3 a chassis-mass error and equal offsets on both forces differ only "
+                     "in their small dynamic signature.")
     for name, (fc, _) in sorted(prob.pipe.band.items()):
         col = MOTION_COLUMN[name]
         mn = prob.motion_noise[col]

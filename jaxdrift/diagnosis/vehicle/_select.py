@@ -3,6 +3,7 @@ exact confounding and the ranking (step 3 of ``docs/diagnosis.md``)."""
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass
 
@@ -325,6 +326,120 @@ def _weak_identifiability(prob: _Problem, active, chosen, Jc, sigma2: float) -> 
     return weak
 
 
+def _subset_screen(base_r: np.ndarray, active, Jc, size: int, top: int = 3) -> list:
+    """The ``top`` subsets of ``size`` candidates whose linear fit (sensitivities at the model,
+    ``Jc``) leaves the smallest residual of the base run, from the Gram matrix (every subset is
+    screened, not only the ones forward selection walks through)."""
+    cands = [c for c in active if c in Jc]
+    if len(cands) < size:
+        return []
+    J = np.column_stack([Jc[c] for c in cands])
+    norms = np.sqrt(np.sum(J * J, axis=0))
+    norms[norms == 0] = 1.0
+    Jn = J / norms
+    G = Jn.T @ Jn
+    b = Jn.T @ base_r
+    out = []
+    for S in itertools.combinations(range(len(cands)), size):
+        if size > 1 and any(cands[i] == _BOTH for i in S) and \
+                sum(cands[i].kind == "force_offset" for i in S) > 1:
+            continue  # equal offsets next to a single offset: two channel offsets, screened as such
+        GS = G[np.ix_(S, S)]
+        if np.linalg.cond(GS) > 1e10:
+            continue
+        gain = float(b[list(S)] @ np.linalg.solve(GS, b[list(S)]))
+        out.append((gain, [cands[i] for i in S]))
+    out.sort(key=lambda s: -s[0])
+    return out[:top]
+
+
+def _wald(prob: _Problem, fit: Fit, idx: list[int]) -> float:
+    """Joint Wald statistic of the causes ``idx`` of a fit (sandwich covariance: the rows are
+    correlated through the model)."""
+    if not idx:
+        return 0.0
+    sigma2 = fit.rss / max(len(fit.r) - len(fit.causes), 1)
+    cov = _covariance(prob, fit.X, sigma2)[np.ix_(idx, idx)]
+    th = fit.theta[idx]
+    return float(th @ np.linalg.pinv(cov) @ th)
+
+
+def _union(fit: Fit, extra: list) -> tuple[list, np.ndarray]:
+    """The selection's causes and ``extra`` in one fit, with its start. Equal offsets on both
+    forces next to a single-channel offset span what the two channel offsets span: they enter as
+    the channel offsets (the span, and so the test, is the same)."""
+    causes = list(fit.causes) + list(extra)
+    theta = np.append(fit.theta, np.zeros(len(extra)))
+    if _BOTH in causes and any(c.kind == "force_offset" and c != _BOTH for c in causes):
+        ib = causes.index(_BOTH)
+        tb = theta[ib]
+        causes.pop(ib)
+        theta = np.delete(theta, ib)
+        for ch in FORCE_CHANNELS:
+            c = Cause("force_offset", ch)
+            if c in causes:
+                theta[causes.index(c)] += tb
+            else:
+                causes.append(c)
+                theta = np.append(theta, tb)
+    return causes, theta
+
+
+def _parsimony(prob: _Problem, base: Fit, fit: Fit, active, Jc, crit: float, log=None) -> Fit:
+    """Best-subset check of the selected causes. Forward selection adds one cause at a time and
+    can lock in a cause that only stands in for two others (an offset on f2 for an offset on f1
+    next to a scale on f2, then a mass error to mend the rest). Every subset of the same size and
+    of one cause fewer is screened linearly and the best three refined; each is fitted together
+    with the selection, and the joint Wald test (sandwich covariance, the selection's own
+    familywise level) decides: a smaller set replaces the selection when the selection's causes
+    outside it add nothing significant to it, a set of the same size when its own causes are
+    significant next to the selection's and the selection's are not next to its."""
+    pipe = prob.pipe
+    level = scipy.stats.chi2.sf(crit, 1)
+    seen = {frozenset(fit.causes)}
+    for _ in range(3):
+        k = len(fit.causes)
+        if k < 2:
+            return fit
+        cur = set(fit.causes)
+        new = None
+        for size in (k - 1, k):
+            for _, S in _subset_screen(base.r, active, Jc, size):
+                if frozenset(S) in seen:
+                    continue
+                seen.add(frozenset(S))
+                extra = [c for c in S if c not in cur]
+                union, th0 = _union(fit, extra)
+                f_u = _gauss_newton(prob, union, th0)
+                if any(_at_bound(c, th, pipe) for c, th in zip(f_u.causes, f_u.theta)):
+                    continue
+                out_idx = [i for i, c in enumerate(f_u.causes) if c not in S]
+                in_idx = [i for i, c in enumerate(f_u.causes) if c in extra]
+                w_out = _wald(prob, f_u, out_idx)
+                w_in = _wald(prob, f_u, in_idx)
+                ok_out = w_out < scipy.stats.chi2.isf(level, len(out_idx))
+                ok_in = size < k or w_in >= scipy.stats.chi2.isf(level, len(in_idx))
+                if log is not None:
+                    log.append(f"subset? {[c.label for c in S]}: Wald of {[f_u.causes[i].label for i in out_idx]} "
+                               f"{w_out:.3g}, of {[f_u.causes[i].label for i in in_idx]} {w_in:.3g}")
+                if not (ok_out and ok_in):
+                    continue
+                f_s = _gauss_newton(prob, S, np.array([f_u.theta[f_u.causes.index(c)] for c in S]))
+                if any(_at_bound(c, th, pipe) or abs(th) < _practical(c, pipe)
+                       for c, th in zip(f_s.causes, f_s.theta)):
+                    continue
+                new = f_s
+                break
+            if new is not None:
+                break
+        if new is None:
+            return fit
+        if log is not None:
+            log.append(f"subset {[c.label for c in fit.causes]} -> {[c.label for c in new.causes]}")
+        fit = _normalise(prob, new)
+    return fit
+
+
 def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
     """Which causes: forward selection, exchange, backward elimination, exact confounding, then
     ranked by |z| (most significant first)."""
@@ -334,6 +449,12 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
     crit = scipy.stats.chi2.ppf(1 - ALPHA / max(len(active), 1), 1)
     fit, chosen, alternatives, path = _forward(prob, base, active, Jc, crit, max_causes, log)
     fit, cov, z, sigma2 = _backward(prob, fit, alternatives, crit, log)
+    if dynamic and len(fit.causes) > 1:
+        before = list(fit.causes)
+        fit = _parsimony(prob, base, fit, active, Jc, crit, log)
+        if fit.causes != before:
+            alternatives = {c: a for c, a in alternatives.items() if c in fit.causes}
+            fit, cov, z, sigma2 = _backward(prob, fit, alternatives, crit, log)
     if dynamic and fit.causes:
         _exact_confounding(prob, fit, cov, active, alternatives, log)
     if len(fit.causes) > 1:

@@ -1,0 +1,98 @@
+"""Vehicle diagnosis with white sensor noise on the measured motion, and selections that forward
+selection alone gets wrong (issue #13).
+
+Runs from the independent generator (``benchmarks/independent/gen_vehicle.py``: scipy DOP853, its
+own ISO 8608 road, vehicles other than the seed's), with seeds not used for tuning (the diagnosis
+was tuned on design seeds 31 and 777; the committed sweep uses 20261201).
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks" / "independent"))
+
+import gen_vehicle as gv  # noqa: E402
+
+import jaxdrift  # noqa: E402
+
+SYSTEMATIC = {"force_offset", "force_scale", "force_delay", "parameter_error"}
+
+
+def _diagnose(tmp_path, seed, **over):
+    case = gv.make_case({"index": 0, "stratum": "single", "what": [["force_offset", "f1"]], "seed": seed},
+                        durations=(20.0, 20.0), rates=(500,))
+    case.update(over)
+    paths = gv.make_run(case, str(tmp_path), f"run{seed}")
+    run = jaxdrift.read_vehicle_run(paths["csv"])
+    model = jaxdrift.read_model(paths["model"])
+    rep = jaxdrift.diagnose_vehicle_run(run, model, with_simulation=False)
+    return rep, case
+
+
+def _target(f):
+    return f["cause"], f.get("channel") or f.get("parameter")
+
+
+NOISY_MOTION = dict(road_class="C", speed=22.0, fs=500.0, duration=20.0,
+                    channel_set="beta_z3", channels=["beta", "z3"], precision=8,
+                    motion_noise={"beta": 6e-5, "z3": 6e-5})
+
+
+@pytest.mark.parametrize("seed", [5151, 5152])
+def test_strong_motion_noise_alone_is_no_systematic_finding(tmp_path, seed):
+    """6e-5 rad / m of white noise on pitch and heave (500 Hz, road C) and 1 N of force noise, no
+    effect: the low-passed channels must not ring with the differentiated noise (before the taper
+    such a run named a damper x0.58 at z = 6 and a force noise of 53 N)."""
+    rep, _ = _diagnose(tmp_path, seed, **NOISY_MOTION, effects=[{"cause": "force_noise", "value": 1.0}])
+    systematic = [f for f in rep["findings"] if f["cause"] in SYSTEMATIC]
+    assert not systematic, rep["findings"]
+    assert rep["findings"][0]["cause"] in ("force_noise", "none")
+    noise = [f["estimate"] for f in rep["findings"] if f["cause"] == "force_noise"]
+    assert all(s < 10.0 for s in noise), noise  # not the 53 N of the ringing filter
+
+
+def test_small_delay_under_motion_noise_is_named_not_a_parameter(tmp_path):
+    """A 0.4 ms delay on f1 under the same motion noise: named first, its interval holds it."""
+    delay = 4e-4
+    rep, _ = _diagnose(tmp_path, 5153, **NOISY_MOTION,
+                       effects=[{"cause": "force_delay", "channel": "f1", "value": delay},
+                                {"cause": "force_noise", "value": 1.0}])
+    first = rep["findings"][0]
+    assert _target(first) == ("force_delay", "f1"), rep["findings"]
+    assert first["interval"][0] <= delay <= first["interval"][1]
+
+
+def test_offset_and_scale_are_not_replaced_by_a_mass_and_equal_offsets(tmp_path):
+    """An offset on f1 and a scale on f2, pitch only, 200 Hz: forward selection took an offset on
+    f2 for the scale's static part and mended the rest with equal offsets and a chassis-mass
+    error; the best-subset check finds the two causes that explain the run."""
+    rep, _ = _diagnose(tmp_path, 5154, road_class="A", speed=28.0, fs=200.0,
+                       duration=12.0, channel_set="beta", channels=["beta"], precision=9, motion_noise={},
+                       effects=[{"cause": "force_offset", "channel": "f1", "value": -100.0},
+                                {"cause": "force_scale", "channel": "f2", "value": 1.03},
+                                {"cause": "force_noise", "value": 0.3}])
+    first_two = {_target(f) for f in rep["findings"][:2]}
+    assert first_two == {("force_offset", "f1"), ("force_scale", "f2")}, rep["findings"]
+    off = next(f for f in rep["findings"] if _target(f) == ("force_offset", "f1"))
+    assert off["interval"][0] <= -100.0 <= off["interval"][1]
+
+
+def test_offsets_on_both_forces_are_two_offsets_not_one_and_gravity(tmp_path):
+    """Offsets of +60 N on f1 and -65 N on f2, pitch only, 200 Hz: with g a candidate the report
+    said one offset of -104 N and g x1.009 (the same span); g is no longer a candidate."""
+    rep, _ = _diagnose(tmp_path, 5155, road_class="D", speed=9.0, fs=200.0, duration=12.0,
+                       channel_set="beta", channels=["beta"], precision=7, motion_noise={},
+                       effects=[{"cause": "force_offset", "channel": "f1", "value": 60.0},
+                                {"cause": "force_offset", "channel": "f2", "value": -65.0},
+                                {"cause": "force_noise", "value": 1.5}])
+    first_two = {_target(f) for f in rep["findings"][:2]}
+    assert first_two == {("force_offset", "f1"), ("force_offset", "f2")}, rep["findings"]
+    assert not any(f.get("parameter") == "g" for f in rep["findings"])
+    for f in rep["findings"][:2]:
+        true = 60.0 if f["channel"] == "f1" else -65.0
+        assert f["interval"][0] <= true <= f["interval"][1], f
