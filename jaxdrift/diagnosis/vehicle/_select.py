@@ -397,10 +397,11 @@ def _parsimony(prob: _Problem, base: Fit, fit: Fit, active, Jc, crit: float, log
     pipe = prob.pipe
     level = scipy.stats.chi2.sf(crit, 1)
     seen = {frozenset(fit.causes)}
+    ties: list = []
     for _ in range(3):
         k = len(fit.causes)
         if k < 2:
-            return fit
+            return fit, ties
         cur = set(fit.causes)
         new = None
         for size in (k - 1, k):
@@ -422,6 +423,10 @@ def _parsimony(prob: _Problem, base: Fit, fit: Fit, active, Jc, crit: float, log
                 if log is not None:
                     log.append(f"subset? {[c.label for c in S]}: Wald of {[f_u.causes[i].label for i in out_idx]} "
                                f"{w_out:.3g}, of {[f_u.causes[i].label for i in in_idx]} {w_in:.3g}")
+                if size == k and ok_out and not ok_in and len(in_idx) == 1 and len(out_idx) == 1:
+                    # one cause for another and neither adds anything next to the other: the run
+                    # cannot tell them apart
+                    ties.append((f_u.causes[out_idx[0]], f_u.causes[in_idx[0]], list(S)))
                 if not (ok_out and ok_in):
                     continue
                 f_s = _gauss_newton(prob, S, np.array([f_u.theta[f_u.causes.index(c)] for c in S]))
@@ -433,11 +438,32 @@ def _parsimony(prob: _Problem, base: Fit, fit: Fit, active, Jc, crit: float, log
             if new is not None:
                 break
         if new is None:
-            return fit
+            return fit, ties
         if log is not None:
             log.append(f"subset {[c.label for c in fit.causes]} -> {[c.label for c in new.causes]}")
         fit = _normalise(prob, new)
-    return fit
+        ties = []
+    return fit, ties
+
+
+def _tie_alternatives(prob: _Problem, fit: Fit, ties: list, alternatives: dict, log=None) -> None:
+    """Record the one-for-one ties of the best-subset check as ``indistinguishable_from`` (with
+    the estimate and 95 % interval the other cause takes in place of the chosen one)."""
+    pipe = prob.pipe
+    for c_out, c_in, S in ties:
+        if c_out not in fit.causes or c_in in fit.causes:
+            continue
+        alts = alternatives.setdefault(c_out, [])
+        if any(a[0] == c_in for a in alts):
+            continue
+        f_s = _gauss_newton(prob, S, np.zeros(len(S)))
+        j = f_s.causes.index(c_in)
+        sigma2 = f_s.rss / max(len(f_s.r) - len(S), 1)
+        se = math.sqrt(max(_covariance(prob, f_s.X, sigma2)[j, j], 0.0))
+        iv = _finding_for(c_in, f_s.theta[j], se, _practical(c_in, pipe))["interval"]
+        alts.append((c_in, float(c_in.to_estimate(f_s.theta[j])), iv))
+        if log is not None:
+            log.append(f"indistinguishable: {c_in.label} for {c_out.label}")
 
 
 def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
@@ -451,10 +477,11 @@ def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
     fit, cov, z, sigma2 = _backward(prob, fit, alternatives, crit, log)
     if dynamic and len(fit.causes) > 1:
         before = list(fit.causes)
-        fit = _parsimony(prob, base, fit, active, Jc, crit, log)
+        fit, ties = _parsimony(prob, base, fit, active, Jc, crit, log)
         if fit.causes != before:
             alternatives = {c: a for c, a in alternatives.items() if c in fit.causes}
             fit, cov, z, sigma2 = _backward(prob, fit, alternatives, crit, log)
+        _tie_alternatives(prob, fit, ties, alternatives, log)
     if dynamic and fit.causes:
         _exact_confounding(prob, fit, cov, active, alternatives, log)
     if len(fit.causes) > 1:
