@@ -97,7 +97,7 @@ def solve_fixed_fast(
     inputs=None,
     dtype=jnp.float32,
     compensated: bool = True,
-    unroll: int = 5,
+    unroll: int = 1,
 ) -> Solution:
     """Fixed-step DOPRI5 of ``y' = f(t, y, args)`` in ``dtype`` with an optional Kahan update.
 
@@ -116,9 +116,12 @@ def solve_fixed_fast(
         dtype: state dtype (float32 for the fast mode; float64 gives the plain solver with the
             same loop structure, useful as a reference).
         compensated: Kahan-compensated summation of the state update.
-        unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``). The default 5
-            measured 188-198 against 231-240 ns per path-step for 1 (half-car, float32, 256 paths);
-            float64 gained nothing (338-340 for 1, 2 and 5), so the engine's fixed-step mode uses 1.
+        unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``). Default 1:
+            with the step's input samples carried from the previous step (``_CARRY_STEP_ARGS``),
+            1 measured 56 against 115 CPU ns per path-step for 5 (half-car, float32, 256 paths,
+            ``docs/performance.md``, session 5): inside an unrolled iteration XLA fuses the
+            counter-dependent input reads back into the vector field's kernels, which then do not
+            vectorise. (Before that change 5 was faster than 1.)
 
     Returns:
         A :class:`jaxdrift.Solution` (``ys`` in ``dtype``; ``result`` always 0).
