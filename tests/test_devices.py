@@ -158,3 +158,31 @@ def test_cli_program_uses_all_cores():
     lines = proc.stdout.split("\n")
     assert f"devices {available_cores()}" in lines
     assert "inprocess 0" in lines
+
+
+_WIDTH_CHILD = """
+import os, jax, jaxdrift
+jaxdrift.use_all_cores(1)
+jax.devices()
+print("FLAGS", os.environ.get("XLA_FLAGS", ""))
+"""
+
+
+@pytest.mark.parametrize("preset", [None, "--xla_cpu_prefer_vector_width=256"])
+def test_vector_width_on_avx512_only_and_user_choice_stands(preset):
+    """use_all_cores adds --xla_cpu_prefer_vector_width=512 on an AVX-512 CPU unless XLA_FLAGS sets it."""
+    from jaxdrift.ensemble._devices import _cpu_has_avx512
+
+    env = {k: v for k, v in os.environ.items() if k not in ("XLA_FLAGS", "JAXDRIFT_CPU_DEVICES")}
+    env["JAX_PLATFORMS"] = "cpu"
+    if preset:
+        env["XLA_FLAGS"] = preset
+    proc = subprocess.run([sys.executable, "-c", _WIDTH_CHILD], env=env, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    flags = proc.stdout.split("FLAGS", 1)[1].split()
+    if preset:
+        assert flags == [preset]
+    elif _cpu_has_avx512():
+        assert flags == ["--xla_cpu_prefer_vector_width=512"]
+    else:
+        assert flags == []

@@ -16,6 +16,39 @@ import re
 
 __all__ = ["use_all_cores", "available_cores"]
 
+#: The XLA flag that lets LLVM use 512-bit vectors in XLA's CPU kernels (XLA's default is 256).
+_VECTOR_WIDTH_FLAG = "--xla_cpu_prefer_vector_width"
+
+
+def _cpu_has_avx512() -> bool:
+    """True when /proc/cpuinfo lists ``avx512f`` (False when unknown: not Linux, no file)."""
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.startswith("flags"):
+                    return "avx512f" in line.split()
+    except OSError:
+        pass
+    return False
+
+
+def _prefer_wide_vectors() -> bool:
+    """Add ``--xla_cpu_prefer_vector_width=512`` to ``XLA_FLAGS`` on an AVX-512 CPU.
+
+    Only before JAX creates its CPU backend (XLA reads ``XLA_FLAGS`` then), only when the CPU has
+    AVX-512 and only when ``XLA_FLAGS`` does not already choose a width (the user's choice stands;
+    ``XLA_FLAGS=--xla_cpu_prefer_vector_width=256`` keeps XLA's default). Measured on the half-car
+    study (2-core AMD EPYC, issue #16, ``docs/performance.md``): 1.4x less CPU time per path-step
+    for the engine and the fast mode, results bit-identical. Returns whether the flag was added.
+    """
+    from jax._src import xla_bridge
+
+    flags = os.environ.get("XLA_FLAGS", "")
+    if _VECTOR_WIDTH_FLAG in flags or xla_bridge.backends_are_initialized() or not _cpu_has_avx512():
+        return False
+    os.environ["XLA_FLAGS"] = (flags + f" {_VECTOR_WIDTH_FLAG}=512").strip()
+    return True
+
 
 def available_cores() -> int:
     """Cores this process may run on (its CPU affinity, which honours ``taskset`` and cgroups)."""
@@ -36,6 +69,10 @@ def use_all_cores(n: int | None = None) -> int:
     environment variable ``JAXDRIFT_CPU_DEVICES`` overrides the default count (``1`` keeps JAX's
     single device). Results do not depend on the count: a path's outputs are bit-identical on one
     or several devices (``tests/test_devices.py``).
+
+    On a CPU with AVX-512 it also lets XLA's kernels use 512-bit vectors
+    (``--xla_cpu_prefer_vector_width=512`` added to ``XLA_FLAGS`` unless ``XLA_FLAGS`` already sets
+    that flag): measured 1.4x less CPU time per path-step on the half-car study, same results.
     """
     import jax
     from jax._src import xla_bridge
@@ -45,6 +82,7 @@ def use_all_cores(n: int | None = None) -> int:
         n = int(env) if env else available_cores()
     if isinstance(n, bool) or not isinstance(n, int) or n < 1:
         raise ValueError(f"n must be a positive int, got {n!r}")
+    _prefer_wide_vectors()
     current = int(jax.config.jax_num_cpu_devices)
     flag = re.search(r"--xla_force_host_platform_device_count=(\d+)", os.environ.get("XLA_FLAGS", ""))
     if flag or current >= 1:  # the user's choice stands

@@ -97,7 +97,7 @@ def solve_fixed_fast(
     inputs=None,
     dtype=jnp.float32,
     compensated: bool = True,
-    unroll: int = 5,
+    unroll: int = 1,
 ) -> Solution:
     """Fixed-step DOPRI5 of ``y' = f(t, y, args)`` in ``dtype`` with an optional Kahan update.
 
@@ -116,9 +116,12 @@ def solve_fixed_fast(
         dtype: state dtype (float32 for the fast mode; float64 gives the plain solver with the
             same loop structure, useful as a reference).
         compensated: Kahan-compensated summation of the state update.
-        unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``). The default 5
-            measured 188-198 against 231-240 ns per path-step for 1 (half-car, float32, 256 paths);
-            float64 gained nothing (338-340 for 1, 2 and 5), so the engine's fixed-step mode uses 1.
+        unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``). Default 1:
+            with the step's input samples carried from the previous step (``_CARRY_STEP_ARGS``),
+            1 measured 56 against 115 CPU ns per path-step for 5 (half-car, float32, 256 paths,
+            ``docs/performance.md``, session 5): inside an unrolled iteration XLA fuses the
+            counter-dependent input reads back into the vector field's kernels, which then do not
+            vectorise. (Before that change 5 was faster than 1.)
 
     Returns:
         A :class:`jaxdrift.Solution` (``ys`` in ``dtype``; ``result`` always 0).
@@ -181,6 +184,13 @@ class _Loop(NamedTuple):
     unroll: int
 
 
+#: Carry each step's time and grid-aligned input samples from the previous step (True) instead of
+#: computing them from the step counter inside the step (False: before session 5 of issue #16).
+#: XLA's CPU backend fuses the counter-dependent slice and interpolation weight into every row of
+#: the vector field that reads an input, and loads the counter there without the invariance
+#: marking its other operands get; LLVM then left those loops unvectorised (one path at a time).
+_CARRY_STEP_ARGS = True
+
 #: Under vmap, run the batched loop on (n, paths) arrays (True) or let vmap batch the per-path
 #: loop, paths first (False: the layout before issue #16, kept for benchmarks/engine_layouts.py).
 _PATHS_LAST = True
@@ -234,10 +244,32 @@ def _loop(F, cfg, y0, inputs, step_args_of):
     h = jnp.asarray(dtf, dtype)
     s = len(c)
 
+    def time_of(i):
+        return jnp.asarray(t0f, tdt) + i.astype(tdt) * jnp.asarray(dtf, tdt)
+
+    # With _CARRY_STEP_ARGS the step's time and args (for a grid-aligned signal: its two samples
+    # and the interval's left time) are computed at the end of the previous step and carried, so
+    # that no kernel of the step reads the step counter (see _CARRY_STEP_ARGS). The array leaves
+    # travel in the carry; the others (vmap axes of the batched layout) are static.
+    carry_args = _CARRY_STEP_ARGS
+    i0 = jnp.asarray(0, jnp.int32)
+    sa0 = step_args_of(i0)
+    sa_leaves, sa_tree = jax.tree.flatten(sa0)
+
+    def sa_arrays(sa):
+        return tuple(x for x in jax.tree.leaves(sa) if isinstance(x, jax.Array))
+
+    def sa_rebuild(arrays):
+        it = iter(arrays)
+        return jax.tree.unflatten(sa_tree, [next(it) if isinstance(x, jax.Array) else x for x in sa_leaves])
+
     def step(carry, u1):
-        i, y, k0, comp, u0 = carry
-        t = jnp.asarray(t0f, tdt) + i.astype(tdt) * jnp.asarray(dtf, tdt)
-        sargs = step_args_of(i)
+        if carry_args:
+            i, y, k0, comp, u0, t, arrays = carry
+            sargs = sa_rebuild(arrays)
+        else:
+            i, y, k0, comp, u0 = carry
+            t, sargs = time_of(i), step_args_of(i)
         du = None if inputs is None else u1 - u0
         ks = [k0]
         for j in range(1, s):
@@ -251,13 +283,18 @@ def _loop(F, cfg, y0, inputs, step_args_of):
             comp = (y_new - y) - d
         else:
             y_new = y + inc
-        t_new = jnp.asarray(t0f, tdt) + (i + 1).astype(tdt) * jnp.asarray(dtf, tdt)
-        return (i + 1, y_new, F(t_new, y_new, u1, sargs), comp, u1 if inputs is not None else u0), None
+        t_new = time_of(i + 1)
+        out = (i + 1, y_new, F(t_new, y_new, u1, sargs), comp, u1 if inputs is not None else u0)
+        if carry_args:
+            out += (t_new, sa_arrays(step_args_of(i + 1)))
+        return out, None
 
     u_init = jnp.zeros((0,), dtype) if inputs is None else inputs[0]
-    i0 = jnp.asarray(0, jnp.int32)
-    k_init = F(jnp.asarray(t0f, tdt), y0, None if inputs is None else u_init, step_args_of(i0))
+    t_init = jnp.asarray(t0f, tdt)
+    k_init = F(t_init, y0, None if inputs is None else u_init, sa0)
     carry = (i0, y0, k_init, jnp.zeros_like(y0), u_init)
+    if carry_args:
+        carry += (time_of(i0), sa_arrays(sa0))
 
     def xs_of(lo, n):
         # The "next sample" of each of n steps from step lo (None: no inputs, scan by length).

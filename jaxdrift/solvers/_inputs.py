@@ -83,6 +83,18 @@ class SampledSignal(eqx.Module):
         return lo + w * (hi - lo)
 
 
+def _clip01(s):
+    """``clip(s, 0, 1)`` written as two selects (same values, NaN stays NaN).
+
+    ``jnp.clip`` lowers to XLA's NaN-propagating ``maximum``/``minimum``, which XLA's CPU backend
+    emits as ``llvm.maximum``/``llvm.minimum``; LLVM does not vectorise a loop containing them. The
+    interpolation weight of a step is a scalar, but XLA fuses it into the loop over the paths of
+    every row of the vector field that reads an input, and that loop then ran one path at a time
+    (issue #16, ``docs/performance.md``). With selects the loop vectorises.
+    """
+    return jnp.where(s < 0.0, jnp.zeros_like(s), jnp.where(s > 1.0, jnp.ones_like(s), s))
+
+
 class _StepSignal(eqx.Module):
     """A :class:`SampledSignal` restricted to one sample interval ``[t_left, t_left + dt]``.
 
@@ -99,7 +111,7 @@ class _StepSignal(eqx.Module):
     kind: str = eqx.field(static=True)
 
     def __call__(self, t):
-        s = jnp.clip((t - self.t_left) / self.dt, 0.0, 1.0).astype(self.lo.dtype)
+        s = _clip01((t - self.t_left) / self.dt).astype(self.lo.dtype)
         if self.kind == "zoh":
             return jnp.where(s >= 1.0 - 1e-9, self.hi, self.lo)
         return self.lo + s * (self.hi - self.lo)

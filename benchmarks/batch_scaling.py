@@ -1,0 +1,128 @@
+"""Cost per path-step against the number of paths per call: jaxdrift and diffrax on the half-car.
+
+Issue #16, session 5, hypothesis 1: a 1 ms step is about 13 XLA kernels on ``(10, paths)`` arrays,
+so a fixed cost per kernel (thunk dispatch, the hand-off of a fusion to XLA's intra-op threads)
+weighs more at small batches. This script times the same study as ``benchmarks/throughput.py``
+(half-car, noisy forces at 1 kHz, fixed 1 ms Dormand-Prince 5(4), pitch and heave every 0.1 s)
+at several paths per call, every contender at the same paths per call:
+
+* ``jaxdrift``: ``solve_ode(dt=...)`` float64, split over all CPU devices (``use_all_cores``, as
+  ``monte_carlo`` and ``throughput.py`` do);
+* ``jaxdrift-fast``: ``solve_fixed_fast`` float32 + Kahan, all devices;
+* ``jaxdrift-1dev``: float64 on one device;
+* ``diffrax``: ``Dopri5`` + ``ConstantStepSize`` under ``jit(vmap)``, one device.
+
+All cases of one size run interleaved in rounds (best kept), as wall time and process CPU time
+(all threads) per path-step.
+
+Reproduce::
+
+    python benchmarks/batch_scaling.py --sizes 128,256,1024,4096 --seconds 1 --rounds 3
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--sizes", default="128,256,1024,4096,16384")
+    ap.add_argument("--seconds", type=float, default=1.0)
+    ap.add_argument("--rounds", type=int, default=3)
+    ap.add_argument("--cases", default="jaxdrift,jaxdrift-fast,jaxdrift-1dev,diffrax")
+    ap.add_argument("--out", default=None, help="JSON path (default: print only)")
+    a = ap.parse_args(argv)
+
+    import jax
+
+    import jaxdrift
+
+    n_dev = jaxdrift.use_all_cores()
+    jax.config.update("jax_enable_x64", True)
+    import diffrax
+    import jax.numpy as jnp
+    import numpy as np
+    from jax.sharding import Mesh, PartitionSpec as P
+
+    from _setup import force_rhs, paper_study
+
+    load0 = list(os.getloadavg())
+    st = paper_study(T=a.seconds)
+    T, dt, n = st.T, st.dt, st.n_samples
+    ts = jnp.arange(0, int(round(T * 10)) + 1) / 10.0
+    f0, x0, key = jnp.asarray(st.f0), jnp.asarray(st.x0), jax.random.key(0)
+    rhs = force_rhs(st.params)
+    n_steps = int(round(T / dt))
+
+    def signal(i, dtype=jnp.float64):
+        eps = jaxdrift.path_normals(key, i, n, 2, dtype) * jnp.asarray(st.sigma, dtype)
+        return jaxdrift.SampledSignal(0.0, dt, f0.astype(dtype) + eps)
+
+    def jd(i):
+        return jaxdrift.solve_ode(rhs, x0, 0.0, T, saveat=ts, args=signal(i), dt=dt).ys[:, 2:4]
+
+    def fast(i):
+        return jaxdrift.solve_fixed_fast(rhs, x0, 0.0, T, saveat=ts, args=signal(i, jnp.float32), dt=dt).ys[:, 2:4]
+
+    def dfx(i):
+        return diffrax.diffeqsolve(
+            diffrax.ODETerm(rhs), diffrax.Dopri5(), 0.0, T, dt, x0, args=signal(i), saveat=diffrax.SaveAt(ts=ts),
+            stepsize_controller=diffrax.ConstantStepSize(), max_steps=n_steps + 16,
+        ).ys[:, 2:4]
+
+    def alldev(fn):
+        f = jax.vmap(fn)
+        if n_dev == 1:
+            return jax.jit(f)
+        mesh = Mesh(np.array(jax.devices()), ("paths",))
+        return jax.jit(jax.shard_map(f, mesh=mesh, in_specs=P("paths"), out_specs=P("paths"), check_vma=False))
+
+    makers = {
+        "jaxdrift": lambda: alldev(jd),
+        "jaxdrift-fast": lambda: alldev(fast),
+        "jaxdrift-1dev": lambda: jax.jit(jax.vmap(jd)),
+        "diffrax": lambda: jax.jit(jax.vmap(dfx)),
+    }
+    names = a.cases.split(",")
+    res = {}
+    for size in [int(s) for s in a.sizes.split(",")]:
+        fns = {k: makers[k]() for k in names}
+        idx = jnp.arange(size, dtype=jnp.int32)
+        for k, f in fns.items():
+            jax.block_until_ready(f(idx))
+        wall = {k: float("inf") for k in fns}
+        cpu = dict(wall)
+        for r in range(a.rounds):
+            for k, f in fns.items():
+                t, c = time.perf_counter(), time.process_time()
+                jax.block_until_ready(f(idx + (r + 1) * size))
+                wall[k] = min(wall[k], time.perf_counter() - t)
+                cpu[k] = min(cpu[k], time.process_time() - c)
+        steps = size * n_steps
+        res[size] = {k: {"wall_ns": wall[k] / steps * 1e9, "cpu_ns": cpu[k] / steps * 1e9} for k in fns}
+        print(f"{size:6d} paths: " + "  ".join(
+            f"{k} wall {v['wall_ns']:.0f} cpu {v['cpu_ns']:.0f}" for k, v in res[size].items()), flush=True)
+        if "diffrax" in fns:
+            print("         vs diffrax (wall): " + "  ".join(
+                f"{k} {res[size]['diffrax']['wall_ns'] / v['wall_ns']:.2f}x" for k, v in res[size].items()
+                if k != "diffrax"), flush=True)
+    load1 = list(os.getloadavg())
+    print(f"load average {load0[0]:.2f} at start, {load1[0]:.2f} at end; {n_dev} devices")
+    if a.out:
+        Path(a.out).write_text(json.dumps({"command": "python benchmarks/batch_scaling.py " + " ".join(
+            sys.argv[1:] if argv is None else argv), "load_average_start": load0, "load_average_end": load1,
+            "devices": n_dev, "seconds": a.seconds, "rounds": a.rounds, "ns_per_path_step": res}, indent=2) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
