@@ -8,6 +8,11 @@ Z_SIGNIFICANT = 5.0  # |estimate - null| / SE for a systematic finding (false al
 DRIFT_LR = 16.0  # REML likelihood-ratio threshold for a bias random walk
 DRIFT_LR_GIVEN_BIAS = 6.0  # ... when a constant bias is significant on the channel (p ~ 0.7 %)
 POSITION_CHI2 = 40.0  # 3-dof chi-square threshold for a displaced sensor
+# a displaced sensor's full-band and rigid-band (below RIGID_BAND_HZ) estimates must agree (Hausman
+# chi-square, 3 dof, p = 0.001) or the rigid band alone must show it; vehicle bodies' structural
+# modes lie well above 8 Hz
+POSITION_AGREE_CHI2 = 16.3
+RIGID_BAND_HZ = 4.0
 NONRIGID_FLOOR = 2e-3  # m/s^2: below this, a rigidity residual is not reported
 # practical floors below which a statistically significant effect is the discretisation of the file
 # (noise-free runs at 100 and 50 Hz show apparent scales of 1e-5 and 1.5e-4), not a gyro property
