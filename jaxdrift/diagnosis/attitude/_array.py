@@ -112,12 +112,12 @@ def array_fit(acc, r, w_gyro, dt, sigma_gyro, fit_bias: bool, n_blocks=20, max_r
     def linearised(th):
         return resid(th, w_s, s2), jac(th, w_i, s2 / 2, resid(th, w_i, s2 / 2)).reshape(ns, -1, p)
 
-    low = _low_band_fit(theta, linearised, blocks, dt * stride)
+    low = _low_band_fit(theta, linearised, blocks, dt * stride, first=(r0, Z3))
     return {"theta": theta, "cov": cov, "resid": r0.reshape(ns, N, 3), "blocks": blocks, "k_s": 1, "stride": stride,
             "idx": idx, "wbar": w_s, "corr": corr(s2), "A": A, "low": low}
 
 
-def _low_band_fit(theta, linearised, blocks, dt_s, f_cut=RIGID_BAND_HZ, max_iter=4):
+def _low_band_fit(theta, linearised, blocks, dt_s, f_cut=RIGID_BAND_HZ, max_iter=4, first=None):
     """The same fit restricted to frequencies below ``f_cut`` (the rigid band): Gauss-Newton from
     ``theta`` on the low-passed residual and Jacobian (``linearised(theta)`` gives both, per sample).
 
@@ -131,7 +131,8 @@ def _low_band_fit(theta, linearised, blocks, dt_s, f_cut=RIGID_BAND_HZ, max_iter
     """
     from scipy.signal import butter, sosfiltfilt
 
-    r0, Z3 = linearised(theta)
+    r0, Z3 = first if first is not None else linearised(theta)
+    r0 = r0.reshape(Z3.shape[0], -1)
     ns, _, p = Z3.shape
     fs = 1.0 / dt_s
     if f_cut >= 0.25 * fs or ns < 200:
@@ -148,7 +149,7 @@ def _low_band_fit(theta, linearised, blocks, dt_s, f_cut=RIGID_BAND_HZ, max_iter
         Hi = np.linalg.pinv(Zf.T @ Zf, rcond=1e-10)
         step = -Hi @ (Zf.T @ rl.reshape(-1))
         th = th + step
-        if np.max(np.abs(step)) < 1e-7:
+        if np.max(np.abs(step)) < 1e-6:  # 1 um (positions) or 1e-6 rad/s (biases)
             break
     res = rl + np.einsum("nkp,p->nk", Zl, step)
     gs = np.stack([np.einsum("nkp,nk->p", Zl[bk], res[bk]) for bk in blocks])
@@ -284,7 +285,11 @@ def array_step(s):
     s.observed.append(f"accelerometer array of {N} sensors (rigid-body residual, sensor positions)")
     nb = len(af["blocks"])
     tq = stats.t.ppf(0.975, nb - 1)
-    excluded, pos_found = _displaced_sensors(af, N, tq)
+    # a position correction is a 3-vector: its interval is the box whose three components hold the
+    # truth together with 95 % probability (Sidak: each at 0.95^(1/3); per-component 95 % intervals
+    # would hold all three in about 86 %)
+    tq_box = stats.t.ppf(1.0 - (1.0 - 0.95 ** (1.0 / 3.0)) / 2.0, nb - 1)
+    excluded, pos_found = _displaced_sensors(af, N, tq_box)
     pos_corr = _position_corrections(s, af, positions, excluded, pos_found, fit_bias)
     if fit_bias:
         _array_gyro_biases(s, af, N, tq)
