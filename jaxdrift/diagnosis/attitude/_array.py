@@ -18,7 +18,7 @@ import numpy as np
 from scipy import stats
 
 from ...models._quaternion import skew_np
-from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_CHI2, Z_SIGNIFICANT, finding, fmt
+from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, finding, fmt
 
 __all__ = ["array_residual", "array_fit", "rigidity_rms", "gyro_noise_power", "white_rigidity_power", "array_step"]
 
@@ -109,8 +109,52 @@ def array_fit(acc, r, w_gyro, dt, sigma_gyro, fit_bias: bool, n_blocks=20, max_r
         dm = np.sqrt(np.maximum(np.diag(cov_m), 1e-300))
         f = np.sqrt(np.maximum(np.diag(cov_s) / dm**2, 1.0))
         cov = cov_m * np.outer(f, f)
+    def linearised(th):
+        return resid(th, w_s, s2), jac(th, w_i, s2 / 2, resid(th, w_i, s2 / 2)).reshape(ns, -1, p)
+
+    low = _low_band_fit(theta, linearised, blocks, dt * stride, first=(r0, Z3))
     return {"theta": theta, "cov": cov, "resid": r0.reshape(ns, N, 3), "blocks": blocks, "k_s": 1, "stride": stride,
-            "idx": idx, "wbar": w_s, "corr": corr(s2), "A": A}
+            "idx": idx, "wbar": w_s, "corr": corr(s2), "A": A, "low": low}
+
+
+def _low_band_fit(theta, linearised, blocks, dt_s, f_cut=RIGID_BAND_HZ, max_iter=4, first=None):
+    """The same fit restricted to frequencies below ``f_cut`` (the rigid band): Gauss-Newton from
+    ``theta`` on the low-passed residual and Jacobian (``linearised(theta)`` gives both, per sample).
+
+    The projection onto the rigid-body complement acts per sample and the parameters do not depend
+    on time, so low-passing the residual and the Jacobian columns in time gives the model of the
+    low-passed data. A position error acts on the rigid field ``(alpha~ + omega~ omega~) dr`` at
+    every frequency; a deformation mode above ``f_cut`` does not reach the band, so its chance
+    correlation with the rigid field (which a block sandwich cannot see when it persists over the
+    run) does not enter here. Returns ``theta``, ``cov`` (block sandwich) and ``f_cut``, or None
+    where the sampling is too coarse or the run too short to filter.
+    """
+    from scipy.signal import butter, sosfiltfilt
+
+    r0, Z3 = first if first is not None else linearised(theta)
+    r0 = r0.reshape(Z3.shape[0], -1)
+    ns, _, p = Z3.shape
+    fs = 1.0 / dt_s
+    if f_cut >= 0.25 * fs or ns < 200:
+        return None
+    # order 8, run forwards and backwards: a mode at 2 f_cut keeps 1.5e-5 of its amplitude
+    sos = butter(8, f_cut, fs=fs, output="sos")
+    th = theta.copy()
+    for it in range(max_iter):
+        if it > 0:
+            r0, Z3 = linearised(th)
+        Zl = sosfiltfilt(sos, Z3, axis=0)
+        rl = sosfiltfilt(sos, r0, axis=0)
+        Zf = Zl.reshape(-1, p)
+        Hi = np.linalg.pinv(Zf.T @ Zf, rcond=1e-10)
+        step = -Hi @ (Zf.T @ rl.reshape(-1))
+        th = th + step
+        if np.max(np.abs(step)) < 1e-6:  # 1 um (positions) or 1e-6 rad/s (biases)
+            break
+    res = rl + np.einsum("nkp,p->nk", Zl, step)
+    gs = np.stack([np.einsum("nkp,nk->p", Zl[bk], res[bk]) for bk in blocks])
+    nb = len(blocks)
+    return {"theta": th, "cov": Hi @ (gs.T @ gs) @ Hi * nb / (nb - 1), "f_cut": f_cut}
 
 
 def rigidity_rms(resid, N, blocks):
@@ -241,7 +285,11 @@ def array_step(s):
     s.observed.append(f"accelerometer array of {N} sensors (rigid-body residual, sensor positions)")
     nb = len(af["blocks"])
     tq = stats.t.ppf(0.975, nb - 1)
-    excluded, pos_found = _displaced_sensors(af, N, tq)
+    # a position correction is a 3-vector: its interval is the box whose three components hold the
+    # truth together with 95 % probability (Sidak: each at 0.95^(1/3); per-component 95 % intervals
+    # would hold all three in about 86 %)
+    tq_box = stats.t.ppf(1.0 - (1.0 - 0.95 ** (1.0 / 3.0)) / 2.0, nb - 1)
+    excluded, pos_found = _displaced_sensors(af, N, tq_box)
     pos_corr = _position_corrections(s, af, positions, excluded, pos_found, fit_bias)
     if fit_bias:
         _array_gyro_biases(s, af, N, tq)
@@ -252,10 +300,64 @@ def _W_of(af):
     return lambda om: skew_np(om) @ skew_np(om) + af["corr"]
 
 
+def _relative(th, cov, j, others):
+    """Sensor j's position correction relative to the mean of ``others``, its covariance and chi-square."""
+    L = np.zeros((3, len(th)))
+    L[:, 3 * j : 3 * j + 3] = np.eye(3)
+    for i in others:
+        L[:, 3 * i : 3 * i + 3] -= np.eye(3) / len(others)
+    d, C = L @ th, L @ cov @ L.T
+    return d, C, float(d @ np.linalg.solve(C + 1e-300 * np.eye(3), d))
+
+
+def _spread_chi2(th, cov, others):
+    """Chi-square of the spread of the ``others``' position corrections about their mean
+    (3 (len(others) - 1) dof): small where they moved together (not at all, or a common shift)."""
+    L = np.zeros((3 * (len(others) - 1), len(th)))
+    for k, i in enumerate(others[:-1]):
+        L[3 * k : 3 * k + 3, 3 * i : 3 * i + 3] += np.eye(3)
+        for m in others:
+            L[3 * k : 3 * k + 3, 3 * m : 3 * m + 3] -= np.eye(3) / len(others)
+    d = L @ th
+    return float(d @ np.linalg.pinv(L @ cov @ L.T, rcond=1e-12) @ d)
+
+
+def _sensor_test(af, j, others):
+    """(chi2, d, C, band, spread) of sensor j's displacement as reported, or None (spread: of the
+    others, :func:`_spread_chi2`).
+
+    Reported from the full band where its chi-square exceeds POSITION_CHI2 and the rigid-band
+    estimate agrees with it (Hausman: the difference against Cov(low) - Cov(full)); from the rigid
+    band alone where that one exceeds POSITION_CHI2 (a deformation above the band biased the full one).
+    """
+    d, C, chi2 = _relative(af["theta"], af["cov"], j, others)
+    low = af.get("low")
+
+    def shown(x, Cx, c2):
+        # a 3 x 3 covariance from a few blocks is unreliable in its smallest direction: the
+        # displacement must also stand out in a coordinate the report shows (its interval)
+        return c2 >= POSITION_CHI2 and np.max(np.abs(x) / np.sqrt(np.maximum(np.diag(Cx), 1e-300))) > Z_SIGNIFICANT
+
+    if low is None:
+        return (chi2, d, C, "full", _spread_chi2(af["theta"], af["cov"], others)) if shown(d, C, chi2) else None
+    dl, Cl, chi2l = _relative(low["theta"], low["cov"], j, others)
+    V = Cl - C
+    if np.any(np.linalg.eigvalsh(V) <= 0):
+        V = Cl
+    diff = d - dl
+    agree = float(diff @ np.linalg.solve(V + 1e-300 * np.eye(3), diff))
+    if shown(d, C, chi2) and agree < POSITION_AGREE_CHI2:
+        return chi2, d, C, "full", _spread_chi2(af["theta"], af["cov"], others)
+    if shown(dl, Cl, chi2l):
+        return chi2l, dl, Cl, "low", _spread_chi2(low["theta"], low["cov"], others)
+    return None
+
+
 def _displaced_sensors(af, N, tq):
-    """Greedy search for displaced sensors: each round, the sensor whose position (relative to the
-    mean of the others) departs most (3-dof chi-square) is taken if above POSITION_CHI2."""
-    th, cov = af["theta"], af["cov"]
+    """Greedy search for displaced sensors: each round, among the sensors whose position (relative to
+    the mean of the others) departs significantly (:func:`_sensor_test`), the one that leaves the
+    others most consistent with one another is taken (the model "only this sensor moved" that fits
+    best: with four sensors, one displaced by d also makes each other one look displaced by -d/3)."""
     excluded = []
     pos_found = []
     for _ in range(N - 3):
@@ -263,52 +365,35 @@ def _displaced_sensors(af, N, tq):
         for j in range(N):
             if j in excluded:
                 continue
-            others = [i for i in range(N) if i != j and i not in excluded]
-            L = np.zeros((3, len(th)))
-            L[:, 3 * j : 3 * j + 3] = np.eye(3)
-            for i in others:
-                L[:, 3 * i : 3 * i + 3] -= np.eye(3) / len(others)
-            dj = L @ th
-            Cj = L @ cov @ L.T
-            chi2 = float(dj @ np.linalg.solve(Cj + 1e-300 * np.eye(3), dj))
-            if best is None or chi2 > best[0]:
-                best = (chi2, j, dj, np.sqrt(np.diag(Cj)))
-        if best is None or best[0] < POSITION_CHI2:
+            tst = _sensor_test(af, j, [i for i in range(N) if i != j and i not in excluded])
+            if tst is not None and (best is None or tst[4] < best[0][4]):
+                best = (tst, j)
+        if best is None:
             break
-        chi2, j, dj, se = best
+        (chi2, dj, Cj, band, _), j = best
+        se = np.sqrt(np.diag(Cj))
         excluded.append(j)
+        where = (f"below {fmt(af['low']['f_cut'])} Hz, where the body moves as a rigid one" if band == "low"
+                 else "over the full band")
         pos_found.append(finding(
             "sensor_position", [float(v) for v in dj], "m", [[float(v) for v in dj - tq * se], [float(v) for v in dj + tq * se]],
             f"the accelerations of sensor {j + 1} fit the rigid-body motion seen by the gyro best with its position "
-            f"moved by [{', '.join(fmt(v) for v in dj)}] m relative to the others (chi-square {fmt(chi2)}, 3 dof)",
+            f"moved by [{', '.join(fmt(v) for v in dj)}] m relative to the others {where} (chi-square {fmt(chi2)}, 3 dof)",
             math.sqrt(chi2), sensor=j + 1))
     return excluded, pos_found
 
 
 def _position_corrections(s, af, positions, excluded, pos_found, fit_bias):
-    """Report the displaced sensors only where their fits explain at least half of the rigidity
-    residual (else the body is not rigid); returns the position corrections (N, 3)."""
+    """Report the displaced sensors; returns the position corrections (N, 3) of the reported ones
+    (the estimates reported, relative to the mean of the sensors not displaced)."""
     N = positions.shape[0]
-    th = af["theta"]
-    dpos = th[: 3 * N].reshape(N, 3)
     W_of = _W_of(af)
-    b_arr = th[3 * N :] if fit_bias else np.zeros(3)
-    resid_before = array_residual(af["A"], positions, W_of(af["wbar"] - b_arr))
-    m2b, _, _ = rigidity_rms(resid_before, N, af["blocks"])
-    m2all, _, _ = rigidity_rms(af["resid"], N, af["blocks"])
-    explained = 1.0 - m2all / max(m2b, 1e-300)
-    af["resid_before"] = resid_before
+    b_arr = af["theta"][3 * N :] if fit_bias else np.zeros(3)
+    af["resid_before"] = array_residual(af["A"], positions, W_of(af["wbar"] - b_arr))
     pos_corr = np.zeros((N, 3))
-    if pos_found and explained >= 0.5:
-        s.findings.extend(pos_found)
-        for j in excluded:
-            others = [i for i in range(N) if i not in excluded]
-            pos_corr[j] = dpos[j] - dpos[others].mean(0)
-    elif pos_found:
-        s.notes.append(
-            f"position fits for sensor(s) {', '.join(str(j + 1) for j in excluded)} explain only "
-            f"{100 * explained:.0f} % of the rigidity residual: not reported as sensor_position (the body is not rigid)"
-        )
+    s.findings.extend(pos_found)
+    for j, (f, _) in zip(excluded, pos_found):
+        pos_corr[j] = f["estimate"]
     for j in range(N):
         s.corrections[f"sensor{j + 1}"] = {"position": [float(v) for v in pos_corr[j]]}
     return pos_corr

@@ -40,7 +40,6 @@ from ._common import (
     DRIFT_LR_GIVEN_BIAS,
     DRIFT_OFF_DEG,
     MIN_INTERVAL_ROWS,
-    NOISE_FREE_FLOOR_FACTOR,
     SCALE_FLOOR,
     Z_SIGNIFICANT,
     finding,
@@ -164,10 +163,7 @@ def gyro_noise_step(s):
             if wn["plateau"] else "rate differences never became white: noise not separable from the motion"
         )
     s.wn, s.floor, s.noise_found, s.sigma_axis = wn, floor, noise_found, sigma_axis
-    ff = 1.0 if noise_found else NOISE_FREE_FLOOR_FACTOR
-    s.scale_floor, s.bias_floor = SCALE_FLOOR * ff, BIAS_FLOOR * ff
-    # noise-free runs at 100 Hz showed apparent drifts up to 2e-5 (curves): 1e-4 there
-    s.drift_floor = DRIFT_FLOOR if noise_found else 1e-4
+    s.scale_floor, s.bias_floor, s.drift_floor = SCALE_FLOOR, BIAS_FLOOR, DRIFT_FLOOR
     s.corrections = {c: {"bias": 0.0, "scale": 1.0} for c in CHANNELS}
     s.bias_path = np.zeros((s.n, 3))
     s.scale = np.ones(3)
