@@ -101,6 +101,9 @@ def _kept(prob: "_Problem", res: "Residuals", nm: str) -> np.ndarray:
 #: samples are taken to carry content up to the Nyquist frequency (for white noise both estimate
 #: the same level, within a few % at the record lengths of a run)
 ALIAS_RATIO = 3.0
+#: below NOISE_MIN_N a low-band level is reported when the forces' 4th differences confirm it
+#: (within ALIAS_RATIO) and it exceeds this [N]
+NOISE_CONFIRMED_MIN_N = 0.1
 
 
 def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
@@ -134,6 +137,13 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
                    f"which here also holds the sensor noise of the measured motion, gives "
                    f"{sigma:.3g} N; the smaller of these two upper bounds is reported")
             sigma = hf
+        elif not found and sigma > NOISE_CONFIRMED_MIN_N and sigma / ALIAS_RATIO <= hf <= ALIAS_RATIO * sigma:
+            # below the reporting floor, but the forces' own 4th differences, an estimate from the
+            # other end of the band that shares nothing with the residual, give the same level:
+            # white noise on the samples, not the comparison's floor
+            found = True
+            src += (f"; the forces' 4th differences give {hf:.3g} N, the same level from the top of "
+                    f"the band")
         elif hf > ALIAS_RATIO * sigma:
             # The force samples carry content up to the Nyquist frequency: without an
             # anti-aliasing filter, content above it folds into the low band as an error on the
