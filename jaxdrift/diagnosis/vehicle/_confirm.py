@@ -17,7 +17,7 @@ import numpy as np
 
 from ._causes import _apply
 from ._problem import Fit, _gauss_newton, _Problem
-from ._report import _rms, _telling_channel
+from ._report import _kept, _rms, _telling_channel
 from ._select import Selection, _covariance
 
 
@@ -32,10 +32,7 @@ def improvement(prob: _Problem, fit: Fit, i: int, res1=None) -> dict:
     r_without = pipe.residuals(p_o, corr_o)
     main = "moment" if "moment" in prob.names else next(nm for nm in prob.names if nm != "static")
     ch = _telling_channel(prob, r_without, res1, main)
-    # the rows the fit uses (a low-passed channel's start is left out there, see limit_bands)
-    k = slice(prob.skip[ch], prob.skip[ch] + prob.rows[ch])
-    a = r_without.channels[ch][k]
-    b = res1.channels[ch][k]
+    a, b = _kept(prob, r_without, ch), _kept(prob, res1, ch)
     h = len(a) // 2
     return {"channel": ch, "without": _rms(a), "with": _rms(b),
             "halves": [(_rms(a[:h]), _rms(b[:h])), (_rms(a[h:]), _rms(b[h:]))]}

@@ -106,6 +106,14 @@ def measure_motion_noise(prob) -> tuple[dict, dict, dict]:
         off = prob.offset[nm]
         return transfer_psd(x_in[off:off + rows], y_out[:rows], fs, nper)
 
+    # the PSD each channel gets from unit white noise on each column (every column's noise reaches
+    # every channel: pitch noise moves the spring points by a sin(beta)), on the channel's Welch grid
+    shapes = {}
+    for (col, nm), e in resp.items():
+        rows = prob.rows[nm]
+        nper = welch_segment(rows)
+        shapes[(col, nm)] = (np.fft.rfftfreq(nper, 1.0 / fs), shape(probes[col], e, nm, rows, nper))
+
     # the enforced moment and heave first (each dominated by its own column's noise, growing as
     # f^4); then the spring channels, with the pitch and heave noise found and the floor taken out
     for nm in names:
@@ -114,12 +122,12 @@ def measure_motion_noise(prob) -> tuple[dict, dict, dict]:
         nper = welch_segment(rows)
         f, P = _welch(r0[nm][:rows], fs, nper)
         band = (f >= TOP_BAND[0] * fs) & (f <= TOP_BAND[1] * fs)
-        G = shape(probes[col], resp[(col, nm)], nm, rows, nper)
+        G = shapes[(col, nm)][1]
         F = sum(shape(wf[ch], rf[ch][nm], nm, rows, nper) for ch in FORCE_CHANNELS)
         known = np.zeros_like(P)
         for col2, v in out.items():
             if (col2, nm) in resp and v["sigma"] > 0:
-                known += v["sigma"] ** 2 * shape(probes[col2], resp[(col2, nm)], nm, rows, nper)
+                known += v["sigma"] ** 2 * shapes[(col2, nm)][1]
         fl = 0.0
         n_seg = welch_segments(rows, nper)
         if nm in floor:
@@ -131,12 +139,4 @@ def measure_motion_noise(prob) -> tuple[dict, dict, dict]:
         found = z >= MOTION_NOISE_MIN_Z and (share >= MOTION_NOISE_MIN_SHARE or (fl > 0 and est >= FLOOR_FACTOR * fl))
         out[col] = {"sigma": est if found else 0.0, "estimate": est, "z": z,
                     "share": share, "written": written_noise_sigma(run[col]), "floor": fl}
-    # every column's noise reaches every channel (pitch noise moves the spring points by a sin(beta)):
-    # the PSD each channel gets from unit white noise on each column, for limit_bands
-    shapes = {}
-    for (col, nm), e in resp.items():
-        rows = prob.rows[nm]
-        nper = welch_segment(rows)
-        f = _welch(e[:rows], fs, nper)[0]
-        shapes[(col, nm)] = (f, shape(probes[col], e, nm, rows, nper))
     return out, resp, shapes

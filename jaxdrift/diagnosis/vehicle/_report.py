@@ -81,9 +81,8 @@ def _telling_channel(prob: "_Problem", before: "Residuals", after: "Residuals", 
     for nm in prob.names:
         if nm == "static":
             continue
-        k = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
-        a = before.channels[nm][k] / prob.noise_std[nm]
-        b = after.channels[nm][k] / prob.noise_std[nm]
+        a = _kept(prob, before, nm) / prob.noise_std[nm]
+        b = _kept(prob, after, nm) / prob.noise_std[nm]
         drop = float(a @ a - b @ b)
         if drop > best_drop * 1.5 or (best == default and drop > best_drop):
             best, best_drop = nm, drop
@@ -156,7 +155,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
                     f"this: they carry content up to the Nyquist frequency, which sampling without "
                     f"an anti-aliasing filter folds into the low band, so this level is an upper bound")
     else:
-        sigma, lo, hi = _force_hf_noise(run)
+        sigma, _, hi = _force_hf_noise(run)
         lo = 0.0  # an upper bound (see src)
         found = sigma > NOISE_MIN_N
         src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "

@@ -385,7 +385,7 @@ def _union(fit: Fit, extra: list) -> tuple[list, np.ndarray]:
     return causes, theta
 
 
-def _parsimony(prob: _Problem, base: Fit, fit: Fit, active, Jc, crit: float, log=None) -> Fit:
+def _parsimony(prob: _Problem, base: Fit, fit: Fit, active, Jc, crit: float, log=None) -> tuple[Fit, list]:
     """Best-subset check of the selected causes. Forward selection adds one cause at a time and
     can lock in a cause that only stands in for two others (an offset on f2 for an offset on f1
     next to a scale on f2, then a mass error to mend the rest). Every subset of the same size and
