@@ -113,3 +113,48 @@ def numpy_force_rhs(params):
         )
 
     return rhs
+
+
+def study_paths(T: float):
+    """The noisy-force study's path functions as the timing scripts compare them (path index ->
+    pitch and heave at the 0.1 s saves): ``engine`` (``solve_ode`` fixed 1 ms, float64), ``fast``
+    (``solve_fixed_fast``, float32 inputs), ``diffrax`` (Dopri5, constant 1 ms steps), and
+    ``all_devices(fn)``: ``jit(vmap(fn))`` split over every JAX device. Also ``study`` and
+    ``n_steps``."""
+    import types
+
+    import diffrax
+    from jax.sharding import Mesh, PartitionSpec as P
+
+    st = paper_study(T=T)
+    T, dt, n = st.T, st.dt, st.n_samples
+    ts = jnp.arange(0, int(round(T * 10)) + 1) / 10.0
+    f0, x0, key = jnp.asarray(st.f0), jnp.asarray(st.x0), jax.random.key(0)
+    rhs = force_rhs(st.params)
+    n_steps = int(round(T / dt))
+
+    def signal(i, dtype=jnp.float64):
+        eps = jaxdrift.path_normals(key, i, n, 2, dtype) * jnp.asarray(st.sigma, dtype)
+        return jaxdrift.SampledSignal(0.0, dt, f0.astype(dtype) + eps)
+
+    def engine(i):
+        return jaxdrift.solve_ode(rhs, x0, 0.0, T, saveat=ts, args=signal(i), dt=dt).ys[:, 2:4]
+
+    def fast(i):
+        return jaxdrift.solve_fixed_fast(rhs, x0, 0.0, T, saveat=ts, args=signal(i, jnp.float32), dt=dt).ys[:, 2:4]
+
+    def dfx(i):
+        return diffrax.diffeqsolve(
+            diffrax.ODETerm(rhs), diffrax.Dopri5(), 0.0, T, dt, x0, args=signal(i), saveat=diffrax.SaveAt(ts=ts),
+            stepsize_controller=diffrax.ConstantStepSize(), max_steps=n_steps + 16,
+        ).ys[:, 2:4]
+
+    def all_devices(fn):
+        f = jax.vmap(fn)
+        if len(jax.devices()) == 1:
+            return jax.jit(f)
+        mesh = Mesh(np.array(jax.devices()), ("paths",))
+        return jax.jit(jax.shard_map(f, mesh=mesh, in_specs=P("paths"), out_specs=P("paths"), check_vma=False))
+
+    return types.SimpleNamespace(study=st, n_steps=n_steps, engine=engine, fast=fast, diffrax=dfx,
+                                 all_devices=all_devices)

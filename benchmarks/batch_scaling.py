@@ -48,49 +48,19 @@ def main(argv=None):
 
     n_dev = jaxdrift.use_all_cores()
     jax.config.update("jax_enable_x64", True)
-    import diffrax
     import jax.numpy as jnp
-    import numpy as np
-    from jax.sharding import Mesh, PartitionSpec as P
 
-    from _setup import force_rhs, paper_study
+    from _setup import study_paths
 
     load0 = list(os.getloadavg())
-    st = paper_study(T=a.seconds)
-    T, dt, n = st.T, st.dt, st.n_samples
-    ts = jnp.arange(0, int(round(T * 10)) + 1) / 10.0
-    f0, x0, key = jnp.asarray(st.f0), jnp.asarray(st.x0), jax.random.key(0)
-    rhs = force_rhs(st.params)
-    n_steps = int(round(T / dt))
-
-    def signal(i, dtype=jnp.float64):
-        eps = jaxdrift.path_normals(key, i, n, 2, dtype) * jnp.asarray(st.sigma, dtype)
-        return jaxdrift.SampledSignal(0.0, dt, f0.astype(dtype) + eps)
-
-    def jd(i):
-        return jaxdrift.solve_ode(rhs, x0, 0.0, T, saveat=ts, args=signal(i), dt=dt).ys[:, 2:4]
-
-    def fast(i):
-        return jaxdrift.solve_fixed_fast(rhs, x0, 0.0, T, saveat=ts, args=signal(i, jnp.float32), dt=dt).ys[:, 2:4]
-
-    def dfx(i):
-        return diffrax.diffeqsolve(
-            diffrax.ODETerm(rhs), diffrax.Dopri5(), 0.0, T, dt, x0, args=signal(i), saveat=diffrax.SaveAt(ts=ts),
-            stepsize_controller=diffrax.ConstantStepSize(), max_steps=n_steps + 16,
-        ).ys[:, 2:4]
-
-    def alldev(fn):
-        f = jax.vmap(fn)
-        if n_dev == 1:
-            return jax.jit(f)
-        mesh = Mesh(np.array(jax.devices()), ("paths",))
-        return jax.jit(jax.shard_map(f, mesh=mesh, in_specs=P("paths"), out_specs=P("paths"), check_vma=False))
+    sp = study_paths(a.seconds)
+    n_steps = sp.n_steps
 
     makers = {
-        "jaxdrift": lambda: alldev(jd),
-        "jaxdrift-fast": lambda: alldev(fast),
-        "jaxdrift-1dev": lambda: jax.jit(jax.vmap(jd)),
-        "diffrax": lambda: jax.jit(jax.vmap(dfx)),
+        "jaxdrift": lambda: sp.all_devices(sp.engine),
+        "jaxdrift-fast": lambda: sp.all_devices(sp.fast),
+        "jaxdrift-1dev": lambda: jax.jit(jax.vmap(sp.engine)),
+        "diffrax": lambda: jax.jit(jax.vmap(sp.diffrax)),
     }
     names = a.cases.split(",")
     res = {}
