@@ -8,8 +8,8 @@ from ._confirm import confirm_by_resimulation, confirm_corrections
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
 from ._problem import _Problem
-from ._report import (SCHEMA, cause_findings, enforced_terms, identifiability_notes, noise_level,
-                      residual_gain, static_findings)
+from ._report import (SCHEMA, cause_findings, enforced_terms, identifiability_notes, joint_intervals,
+                      noise_level, residual_gain, static_findings)
 from ._residuals import ResidualPipeline
 from ._select import _select
 
@@ -55,6 +55,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         findings.append({"cause": "force_noise", "estimate": float(sigma), "unit": "N",
                          "interval": [float(noise["lo"]), float(noise["hi"])],
                          "evidence": src[0].upper() + src[1:] + "."})
+    joint_intervals(findings)
     if not findings:
         findings.append({"cause": "none", "evidence": (
             "no systematic cause passes the test and " + noise["source"] +
