@@ -244,8 +244,7 @@ def gain_measure(kind: str, ok: list[dict]) -> dict:
         n, k = len(group), sum(a < b for _, (_, b, a) in group)
         return {"n": n, "confirmed": k, "confirmed_pct": _pct(k, n),
                 "clear": sum(a < CLEAR_FACTOR * b for _, (_, b, a) in group),
-                "median_ratio": None if not n else round(
-                    (ratios[n // 2] + ratios[(n - 1) // 2]) / 2, 4)}
+                "median_ratio": None if not n else float(f"{(ratios[n // 2] + ratios[(n - 1) // 2]) / 2:.3g}")}
 
     with_sys = [(r, resimulated(kind, r)) for r in ok if systematic(r)]
     eligible = [(r, m) for r, m in with_sys if m is not None]
