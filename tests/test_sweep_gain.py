@@ -63,7 +63,8 @@ def test_gain_measure_counts_on_known_gains():
     assert g["no_systematic_finding"] == {"n": 2, "after_equals_before": 1, "differ": [7]}
     s = sw.summarise("vehicle", results, {"seed": 0, "command": "x"})
     md = sw.markdown(s)
-    assert "| 4/5 (80.0 %); after < 0.9 x before in 3; median after/before 0.85 | gains confirmed by re-simulation |" in md
+    assert ("| 4/5 (80.0 %); after < 0.9 x before in 3; median after/before 0.85 "
+            "| gains confirmed by re-simulation |") in md
     assert "## Gains not confirmed by re-simulation (1 of 5)" in md and "- run 3 [single]" in md
     assert "| 1/2 (differ: runs 7) |" in md
     # without any re-simulated error (--no-simulation) the row says so
@@ -75,7 +76,8 @@ def test_attitude_gain_only_from_the_integrated_rates():
     att = {"index": 0, "findings": [{"cause": "gyro_bias"}], "score": {"right": True}}
     assert sw.resimulated("attitude", dict(att, gain={"metric": "attitude_error_rms", "before": 0.1, "after": 0.01})) \
         == ("attitude_error_rms", 0.1, 0.01)
-    assert sw.resimulated("attitude", dict(att, gain={"metric": "rigidity_residual_rms", "before": 0.1, "after": 0.01})) is None
+    rig = {"metric": "rigidity_residual_rms", "before": 0.1, "after": 0.01}
+    assert sw.resimulated("attitude", dict(att, gain=rig)) is None
     assert sw.resimulated("attitude", dict(att, gain={"metric": None, "before": None, "after": None})) is None
 
 
@@ -97,3 +99,43 @@ def test_resimulated_pitch_error_falls_with_a_large_offset(tmp_path, monkeypatch
     g = r["gain"]
     assert g["beta_rms_after"] < 0.5 * g["beta_rms_before"], g
     assert sw.resimulated("vehicle", r)[0] == "beta_rms"
+
+
+def test_force_driven_solve_is_shared_between_lengths_and_padding_free():
+    """The re-simulation's compiled solve is shared by runs of one rate and similar length (padded
+    to a length bucket, the forces held past the end): a shorter run in the same bucket reuses it and
+    gets the same states at its samples; and the states match a plain engine solve of the unpadded
+    run at its own sample interval, saving at its own times."""
+    import jax
+    import jax.numpy as jnp
+    import numpy as np
+
+    import generators_scipy as gs
+    from jaxdrift.diagnosis.vehicle import _extend
+    from jaxdrift.io._csvio import VehicleRun
+    from jaxdrift.models._halfcar import static_equilibrium
+    from jaxdrift.models._params import HalfCarParams
+    from jaxdrift.solvers._inputs import SampledSignal
+    from jaxdrift.solvers._solve import solve_ode
+
+    cols, _ = gs.make_run(gs.SEED_MODEL, duration=2.8, fs=250.0, speed=20.0, road_class="C", seed=7,
+                          channels=("beta",))
+    t = np.asarray(cols.pop("t"))
+    runs = [VehicleRun(path="x", t=t[:n], channels={k: np.asarray(v)[:n] for k, v in cols.items()})
+            for n in (len(t), len(t) - 11)]
+    assert _extend._bucket(runs[0].n) == _extend._bucket(runs[1].n) > runs[0].n
+    _extend._JIT_CACHE.clear()
+    ys = [_extend._force_driven_pitch(r, [gs.SEED_MODEL], [{ch: r[ch] for ch in ("f1", "f2")}])[0] for r in runs]
+    assert len(_extend._JIT_CACHE) == 1
+    assert ys[0].shape == (runs[0].n, 10) and ys[1].shape == (runs[1].n, 10)
+    assert np.array_equal(ys[1], ys[0][:runs[1].n])
+    r = runs[0]
+    with jax.enable_x64(True):
+        p = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(gs.SEED_MODEL))
+        sig = SampledSignal(0.0, r.dt, np.stack([r["f1"], r["f2"]], axis=1))
+        tau = jnp.asarray(r.t - r.t[0])
+        sol = solve_ode(_extend._force_rhs, static_equilibrium(p, "force"), 0.0, float(tau[-1]), saveat=tau,
+                        args=(p, sig), dt=r.dt / 4)
+        ref = np.asarray(sol.ys)
+    assert np.abs(ys[0][:, 3] - ref[:, 3]).max() < 1e-9 * np.abs(ref[:, 3]).max() + 1e-12
+    assert np.abs(ys[0] - ref).max() < 1e-9 * np.abs(ref).max()

@@ -19,6 +19,15 @@ DRIFT_THRESHOLD_RAD = math.radians(0.5)
 #: that one compiled solve serves every call on a run (the re-simulation check's all-causes and
 #: leave-one-out variants, its refits, and the report's before/after)
 BATCH = 4
+#: compiled solves kept (one per sample interval and length bucket; a sweep reuses them across runs)
+CACHE_SIZE = 64
+
+
+def _bucket(n: int) -> int:
+    """The length the simulation is padded to: the next of 256 x 2^(j/4) samples (at most 19 %
+    more), so that runs of one rate and similar length share a compiled solve."""
+    j = max(0, math.ceil(4 * math.log2(n / 256) - 1e-9))
+    return max(n, int(math.ceil(256 * 2 ** (j / 4))))
 
 
 def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
@@ -28,11 +37,13 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     The engine's DOPRI5 with a fixed step: the sample interval, halved until it is at most
     1 ms. The measured forces are linear between samples, so steps on the sample grid never
     straddle a kink; 1 ms keeps the stiffest mode (the wheel on its damper, about -700 1/s)
-    well inside the method's stability region. Returns one ``(n, 10)`` array per pair.
+    well inside the method's stability region. Returns one ``(n, 10)`` array per pair, the states
+    at the samples of the uniform grid the forces are read on.
 
-    The solve is compiled once per run (its step count and save times are fixed by the run) and
-    called in batches of ``BATCH``: compiling is most of the cost (about 5 s of CPU per distinct
-    batch size on a 7000-sample run against 0.2 s for the solve itself).
+    Compiling is most of the cost (1.5-5 s of CPU against 0.1-0.2 s for the solve of a few
+    thousand samples), so the solve is compiled for a sample interval (the run's, to 9 significant
+    digits) and a length bucket (``_bucket``; the forces held at their last value past the run's
+    end, which the states at the run's samples do not see) and called in batches of ``BATCH``.
     """
     import jax
     import jax.numpy as jnp
@@ -41,11 +52,12 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     from ...solvers._inputs import SampledSignal
     from ...models._params import HalfCarParams
 
-    sub = int(math.ceil(run.dt / 1e-3 - 1e-9))
-    tau = np.asarray(run.t - run.t[0], dtype=np.float64)
+    dt = float(f"{run.dt:.9g}")
+    sub = int(math.ceil(dt / 1e-3 - 1e-9))
+    n, nb = run.n, _bucket(run.n)
     out, codes = [], []
     with jax.enable_x64(True):
-        solve = _compiled_solve(tau, run.dt / sub)
+        solve = _compiled_solve(nb, dt, sub)
         for i0 in range(0, len(models), BATCH):
             ms, fs = models[i0:i0 + BATCH], forces[i0:i0 + BATCH]
             pad = BATCH - len(ms)
@@ -53,12 +65,13 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
             ps = [jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64),
                                          HalfCarParams.from_dict(m)) for m in ms]
             params = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *ps)
-            values = jnp.stack([jnp.stack([jnp.asarray(f["f1"]), jnp.asarray(f["f2"])], axis=1)
-                                for f in fs])
-            sig = jax.vmap(lambda v: SampledSignal(0.0, run.dt, v))(values)  # a batch of signals
+            values = np.stack([np.stack([np.asarray(f["f1"], dtype=np.float64),
+                                         np.asarray(f["f2"], dtype=np.float64)], axis=1) for f in fs])
+            values = np.concatenate([values, np.repeat(values[:, -1:], nb - n, axis=1)], axis=1)
+            sig = jax.vmap(lambda v: SampledSignal(0.0, dt, v))(jnp.asarray(values))  # a batch of signals
             y0 = jax.vmap(lambda p: static_equilibrium(p, "force"))(params)
             ys, c = solve(params, sig, y0)
-            out += list(np.asarray(ys)[:BATCH - pad])
+            out += list(np.asarray(ys)[:BATCH - pad, :n])
             codes += np.asarray(c)[:BATCH - pad].tolist()
     if np.any(np.asarray(codes) != 0):
         raise RuntimeError(f"force-driven simulation failed (result codes {codes})")
@@ -73,30 +86,34 @@ def _force_rhs(t, y, args):
     return force_driven_rhs(t, y, params, f[0], f[1])
 
 
-#: the last run's compiled solve, keyed by its save times and step
+#: compiled solves by (samples, sample interval, steps per sample), least recently used first
 _JIT_CACHE: dict = {}
 
 
-def _compiled_solve(tau: np.ndarray, dt: float):
-    """The jitted, vmapped force-driven solve over ``[0, tau[-1]]`` with step ``dt`` saving at
-    ``tau``. The save times are concrete (closed over), so the engine takes its fixed-step path for
-    saves on the step grid (a scan over save intervals) where they are (a uniform run), which also
+def _compiled_solve(n: int, dt: float, sub: int):
+    """The jitted, vmapped force-driven solve of ``n`` samples ``dt`` apart with ``sub`` steps per
+    sample, saving at the samples. The save times are concrete (closed over), so the engine takes
+    its fixed-step path for saves on the step grid (a scan over save intervals), which also
     compiles in about half the time of the general one."""
     import jax
 
     from ...solvers._solve import solve_ode
 
-    key = (tau.size, float(dt), hash(tau.tobytes()))
-    if _JIT_CACHE.get("key") != key:
-        t1 = float(tau[-1])
+    key = (n, dt, sub)
+    f = _JIT_CACHE.pop(key, None)
+    if f is None:
+        tau = np.arange(n) * dt
+        t1, h = float(tau[-1]), dt / sub
 
         def one(p, sg, y):
-            sol = solve_ode(_force_rhs, y, 0.0, t1, saveat=tau, args=(p, sg), dt=dt)
+            sol = solve_ode(_force_rhs, y, 0.0, t1, saveat=tau, args=(p, sg), dt=h)
             return sol.ys, sol.result
 
-        _JIT_CACHE.clear()
-        _JIT_CACHE.update(key=key, f=jax.jit(jax.vmap(one)))
-    return _JIT_CACHE["f"]
+        f = jax.jit(jax.vmap(one))
+        while len(_JIT_CACHE) >= CACHE_SIZE:
+            _JIT_CACHE.pop(next(iter(_JIT_CACHE)))
+    _JIT_CACHE[key] = f
+    return f
 
 
 def _linear_force_system(p: dict):
