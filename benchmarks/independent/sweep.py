@@ -422,7 +422,7 @@ def _gain_rows(g: dict | None) -> list[str]:
             f"finding ({mets}) | {g['confirmed']}/{g['n']} ({g['confirmed_pct']} %); after < "
             f"{g['clear_factor']:g} x before in {g['clear']}; median after/before {g['median_ratio']} "
             "| gains confirmed by re-simulation |",
-            f"| ... runs scored right | {rt['confirmed']}/{rt['n']} ({rt['confirmed_pct']} %); after < "
+            f"| ... runs scored right (single: right first; pair: both in the first two) | {rt['confirmed']}/{rt['n']} ({rt['confirmed_pct']} %); after < "
             f"{g['clear_factor']:g} x before in {rt['clear']}; median after/before {rt['median_ratio']} | |",
             f"| ... no systematic finding: re-simulated error unchanged | {nf['after_equals_before']}/{nf['n']}"
             + (f" (differ: runs {', '.join(map(str, nf['differ']))})" if nf["differ"] else "") + " | |"]
