@@ -79,6 +79,17 @@ def test_attitude_gain_only_from_the_integrated_rates():
     rig = {"metric": "rigidity_residual_rms", "before": 0.1, "after": 0.01}
     assert sw.resimulated("attitude", dict(att, gain=rig)) is None
     assert sw.resimulated("attitude", dict(att, gain={"metric": None, "before": None, "after": None})) is None
+    # a sensor position is no correction of the rates: with the same attitude error it is checked as
+    # unchanged, not counted as a gain that failed
+    sp = [{"cause": "sensor_position", "sensor": 2, "value": [0.01, 0.0, 0.0]}]
+    gb = [{"cause": "gyro_bias", "channel": "wx", "value": 1e-4}]
+    runs = [{"index": i, "stratum": "single", "effects": e, "findings": [dict(x, estimate=x["value"]) for x in e],
+             "score": sw.score("attitude", e, [dict(x, estimate=x["value"]) for x in e]),
+             "gain": {"metric": "attitude_error_rms", "before": 0.1, "after": a}} for i, e, a in
+            ((0, sp, 0.1), (1, gb, 0.01))]
+    g = sw.gain_measure("attitude", runs)
+    assert (g["n"], g["confirmed"], g["with_systematic_finding"]) == (1, 1, 1)
+    assert g["no_systematic_finding"] == {"n": 1, "after_equals_before": 1, "differ": []}
 
 
 def test_resimulated_pitch_error_falls_with_a_large_offset(tmp_path, monkeypatch):
