@@ -149,7 +149,19 @@ def _trim(f: dict) -> dict:
     return {k: f[k] for k in keep if k in f}
 
 
-def run_one(kind: str, case: dict, cache: str, sizing: dict, keep_dir: str | None = None) -> dict:
+def _trim_gain(g: dict | None) -> dict:
+    """The report's gain without the per-entry detail: the metric and its before/after, and for a
+    vehicle run with the force-driven re-simulation the pitch (and heave) RMS errors before/after."""
+    g = g or {}
+    out = {k: g[k] for k in ("metric", "before", "after", "unit", "beta_rms_before", "beta_rms_after") if k in g}
+    if "z3_error" in g:
+        out["z3_rms_before"] = g["z3_error"]["before"]["rms"]
+        out["z3_rms_after"] = g["z3_error"]["after"]["rms"]
+    return out
+
+
+def run_one(kind: str, case: dict, cache: str, sizing: dict, keep_dir: str | None = None,
+            with_simulation: bool = True) -> dict:
     """Generate, diagnose and score one case; write its result JSON atomically into ``cache``."""
     import numpy as np  # noqa: F401  (workers start clean)
 
@@ -170,12 +182,14 @@ def run_one(kind: str, case: dict, cache: str, sizing: dict, keep_dir: str | Non
         if kind == "vehicle":
             run = jaxdrift.read_vehicle_run(paths["csv"])
             model = jaxdrift.read_model(paths["model"])
-            report = jaxdrift.diagnose_vehicle_run(run, model, with_simulation=False)
+            report = jaxdrift.diagnose_vehicle_run(run, model, with_simulation=with_simulation)
+            res["with_simulation"] = with_simulation
         else:
             report = jaxdrift.run_attitude_diagnosis(paths["csv"], paths["sensors"])
         res["diag_cpu_s"] = time.process_time() - c1
         res["wall_s"] = time.time() - w0
         res["findings"] = [_trim(f) for f in report.get("findings", [])]
+        res["gain"] = _trim_gain(report.get("gain"))
         res["score"] = score(kind, full["effects"], report.get("findings", []))
     except Exception as e:  # noqa: BLE001 - a failing diagnosis is a result, recorded
         res["error"] = f"{type(e).__name__}: {e}"
@@ -194,6 +208,66 @@ def run_one(kind: str, case: dict, cache: str, sizing: dict, keep_dir: str | Non
 # ----------------------------------------------------------------------------- summary
 def _pct(k, n):
     return None if n == 0 else round(100.0 * k / n, 1)
+
+
+#: the systematic causes whose correction the re-simulated error sees: every vehicle cause; of the
+#: attitude causes only the gyro's (the array's, sensor_position and nonrigid, do not enter the
+#: integrated rates; their gain is the rigidity residual, no re-simulation)
+RESIMULATED_CAUSES = {"vehicle": SYSTEMATIC["vehicle"], "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift")}
+#: the margin the diagnosis itself asks of a correction in the force-driven re-simulation
+#: (``_confirm.WORSE_FACTOR``): reported beside the bare after < before, not instead of it
+CLEAR_FACTOR = 0.9
+
+
+def resimulated(kind: str, r: dict) -> tuple | None:
+    """(metric, before, after) of the run's re-simulated error, or None: vehicle the force-driven
+    pitch RMS error (else the heave's); attitude the attitude error of the integrated corrected
+    rates (the rigidity residual and the static mean rate are no re-simulation)."""
+    g = r.get("gain") or {}
+    if kind == "vehicle":
+        for m in ("beta", "z3"):
+            if g.get(f"{m}_rms_before") is not None and g.get(f"{m}_rms_after") is not None:
+                return f"{m}_rms", g[f"{m}_rms_before"], g[f"{m}_rms_after"]
+        return None
+    if g.get("metric") == "attitude_error_rms" and g.get("before") is not None and g.get("after") is not None:
+        return "attitude_error_rms", g["before"], g["after"]
+    return None
+
+
+def gain_measure(kind: str, ok: list[dict]) -> dict:
+    """Gains confirmed by re-simulation. Runs whose report names a systematic cause the re-simulation
+    sees (``RESIMULATED_CAUSES``) and that have a re-simulated error: confirmed where the extended
+    model's error is below the model's (after < before), also counted with the margin
+    ``CLEAR_FACTOR``, for all of them and for the runs scored right, with the median after/before.
+    Runs with no such cause reported: the re-simulated part of the extended model is the model, so
+    after must equal before (to 1e-9 relative)."""
+    def systematic(r):
+        return any(f["cause"] in RESIMULATED_CAUSES[kind] for f in r.get("findings", []))
+
+    def count(group):
+        ratios = sorted(a / b if b > 0 else float("inf") for _, (_, b, a) in group)
+        n, k = len(group), sum(a < b for _, (_, b, a) in group)
+        return {"n": n, "confirmed": k, "confirmed_pct": _pct(k, n),
+                "clear": sum(a < CLEAR_FACTOR * b for _, (_, b, a) in group),
+                "median_ratio": None if not n else float(f"{(ratios[n // 2] + ratios[(n - 1) // 2]) / 2:.3g}")}
+
+    with_sys = [(r, resimulated(kind, r)) for r in ok if systematic(r)]
+    eligible = [(r, m) for r, m in with_sys if m is not None]
+    out = {"clear_factor": CLEAR_FACTOR, "with_systematic_finding": len(with_sys),
+           "metrics": dict(Counter(m[0] for _, m in eligible)), **count(eligible),
+           "right": count([(r, m) for r, m in eligible if r["score"].get("right") is True])}
+    out["not_confirmed"] = [
+        {"index": r["index"], "stratum": r["stratum"], "metric": m[0], "before": m[1], "after": m[2],
+         "truth": [f"{c['target']}={_fmt(c['true'])}" for c in r["score"]["coverage"]],
+         "reported": [f"{label(target(f))}={_fmt(f.get('estimate'))}" for f in r["findings"][:3]],
+         "right": r["score"].get("right"), "where": _where(kind, r["case"])}
+        for r, m in eligible if not m[2] < m[1]]
+    free = [(r, resimulated(kind, r)) for r in ok if not systematic(r)]
+    free = [(r, m) for r, m in free if m is not None]
+    same = {r["index"] for r, (_, b, a) in free if abs(a - b) <= 1e-9 * max(abs(b), 1e-300)}
+    out["no_systematic_finding"] = {"n": len(free), "after_equals_before": len(same),
+                                    "differ": [r["index"] for r, _ in free if r["index"] not in same]}
+    return out
 
 
 def summarise(kind: str, results: list[dict], meta: dict) -> dict:
@@ -265,12 +339,14 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
         "confusion": {k: dict(v) for k, v in sorted(confusion.items())},
         "cpu_s": {"total": round(sum(cpu), 1), "mean": round(sum(cpu) / max(len(cpu), 1), 2),
                   "max": round(max(cpu, default=0.0), 1)},
+        "gain_by_resimulation": gain_measure(kind, ok),
         "misses": misses,
         "per_run": [{"index": r["index"], "stratum": r["stratum"],
                      "truth": [label(target(e)) for e in r.get("effects", [])],
                      "first_three": [label(target(f)) for f in r.get("findings", [])[:3]],
                      "right": r.get("score", {}).get("right"), "false_alarm": r.get("score", {}).get("false_alarm"),
                      "all_covered": r.get("score", {}).get("all_covered"), "error": r.get("error"),
+                     "gain": r.get("gain"),
                      "cpu_s": round(r.get("gen_cpu_s", 0) + r.get("diag_cpu_s", 0), 2)} for r in results],
     }
 
@@ -313,6 +389,7 @@ def markdown(s: dict) -> str:
          f"{s['coverage']['runs']} ({s['coverage']['runs_all_covered_pct']} %) | >= 90 % |",
          f"| noise level within 1.5x of the truth | {s['noise_within_1.5x']['k']}/{s['noise_within_1.5x']['n']} "
          f"({s['noise_within_1.5x']['pct']} %) | 100 % |",
+         *_gain_rows(s.get("gain_by_resimulation")),
          "", f"CPU: {s['cpu_s']['total']} s in all, {s['cpu_s']['mean']} s per run, at most {s['cpu_s']['max']} s.", "",
          "## Confusion: true cause (single-effect and effect-free runs) x first reported cause", ""]
     cols = sorted({c for row in s["confusion"].values() for c in row})
@@ -328,7 +405,33 @@ def markdown(s: dict) -> str:
           ", ".join(f"{k} {v['covered']}/{v['n']}" for k, v in s["coverage"]["per_cause"].items()), "",
           f"## Misses ({len(s['misses'])})", ""]
     L += [f"- {m}" for m in s["misses"]]
+    g = s.get("gain_by_resimulation")
+    if g and g["n"]:
+        L += ["", f"## Gains not confirmed by re-simulation ({len(g['not_confirmed'])} of {g['n']})", "",
+              "Runs with a finding the re-simulation sees whose extended model's re-simulated RMS error is "
+              "not below the model's.", ""]
+        L += [f"- run {x['index']} [{x['stratum']}] {x['where']}: truth {', '.join(x['truth']) or 'no effect'}; "
+              f"reported {', '.join(x['reported'])}; {x['metric']} {_fmt(x['before'])} -> {_fmt(x['after'])}"
+              + (" (scored right)" if x["right"] else "") for x in g["not_confirmed"]]
     return "\n".join(L) + "\n"
+
+
+def _gain_rows(g: dict | None) -> list[str]:
+    """The summary table's rows for the gains confirmed by re-simulation."""
+    if not g or not g["n"]:
+        return ["| gains confirmed by re-simulation | not measured (no re-simulated error: "
+                "`--no-simulation` or no pitch/heave/reference) | gains confirmed by re-simulation |"]
+    mets = ", ".join(f"{k} {v}" for k, v in sorted(g["metrics"].items()))
+    rt, nf = g["right"], g["no_systematic_finding"]
+    which = "systematic" if "beta_rms" in g["metrics"] or "z3_rms" in g["metrics"] else "gyro"
+    return [f"| re-simulated error lower with the extended model (after < before), runs with a {which} "
+            f"finding ({mets}) | {g['confirmed']}/{g['n']} ({g['confirmed_pct']} %); after < "
+            f"{g['clear_factor']:g} x before in {g['clear']}; median after/before {g['median_ratio']} "
+            "| gains confirmed by re-simulation |",
+            f"| ... runs scored right (single: right first; pair: both in the first two) | {rt['confirmed']}/{rt['n']} ({rt['confirmed_pct']} %); after < "
+            f"{g['clear_factor']:g} x before in {rt['clear']}; median after/before {rt['median_ratio']} | |",
+            f"| ... no {which} finding: re-simulated error unchanged | {nf['after_equals_before']}/{nf['n']}"
+            + (f" (differ: runs {', '.join(map(str, nf['differ']))})" if nf["differ"] else "") + " | |"]
 
 
 def _commit():
@@ -355,6 +458,9 @@ def main(argv=None):
     ap.add_argument("--chunk", default="0/1", help="i/k: only the cases with index = i mod k")
     ap.add_argument("--report-only", action="store_true", help="summarise the cache, run nothing")
     ap.add_argument("--keep-runs", help="keep the generated files in this folder")
+    ap.add_argument("--no-simulation", action="store_true",
+                    help="vehicle: diagnose with with_simulation=False (no force-driven re-simulation: "
+                         "no re-simulation check of the causes and no pitch gain; faster)")
     a = ap.parse_args(argv)
     gen = __import__("gen_vehicle" if a.kind == "vehicle" else "gen_attitude")
     cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{a.seed}")
@@ -376,13 +482,14 @@ def main(argv=None):
 
         if a.jobs <= 1:
             for j, c in enumerate(todo, 1):
-                show(j, run_one(a.kind, c, cache, sizing, a.keep_runs))
+                show(j, run_one(a.kind, c, cache, sizing, a.keep_runs, not a.no_simulation))
         else:
             import multiprocessing as mp
             from concurrent.futures import ProcessPoolExecutor, as_completed
 
             with ProcessPoolExecutor(a.jobs, mp_context=mp.get_context("spawn")) as ex:
-                futs = [ex.submit(run_one, a.kind, c, cache, sizing, a.keep_runs) for c in todo]
+                futs = [ex.submit(run_one, a.kind, c, cache, sizing, a.keep_runs,
+                                     not a.no_simulation) for c in todo]
                 for j, f in enumerate(as_completed(futs), 1):
                     show(j, f.result())
     results = []
@@ -392,7 +499,8 @@ def main(argv=None):
             with open(p) as fh:
                 results.append(json.load(fh))
     cmd = (f"python benchmarks/independent/sweep.py --kind {a.kind} --n {a.n} --seed {a.seed} "
-           f"--out {a.out}" + (f" --prefix {a.prefix}" if a.prefix else "") + " --jobs 1")
+           f"--out {a.out}" + (f" --prefix {a.prefix}" if a.prefix else "")
+           + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "") + " --jobs 1")
     summ = summarise(a.kind, results, {"seed": a.seed, "n_design": a.n, "command": cmd,
                                        "sizing": sizing, "jaxdrift_commit": _commit()})
     if len(results) < len(cases):

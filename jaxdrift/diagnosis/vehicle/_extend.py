@@ -15,6 +15,21 @@ from ._discretise import _discretise
 DRIFT_THRESHOLD_RAD = math.radians(0.5)
 
 
+#: the simulations are run in batches of this many (model, forces) pairs, the last one padded, so
+#: that one compiled solve serves every call on a run (the re-simulation check's all-causes and
+#: leave-one-out variants, its refits, and the report's before/after)
+BATCH = 4
+#: compiled solves kept (one per sample interval and length bucket; a sweep reuses them across runs)
+CACHE_SIZE = 64
+
+
+def _bucket(n: int) -> int:
+    """The length the simulation is padded to: the next of 256 x 2^(j/4) samples (at most 19 %
+    more), so that runs of one rate and similar length share a compiled solve."""
+    j = max(0, math.ceil(4 * math.log2(n / 256) - 1e-9))
+    return max(n, int(math.ceil(256 * 2 ** (j / 4))))
+
+
 def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     """States of the force-driven model (A.3) driven by ``forces``, from each model's static
     equilibrium, for several (model, forces) pairs at once (vmapped).
@@ -22,7 +37,13 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     The engine's DOPRI5 with a fixed step: the sample interval, halved until it is at most
     1 ms. The measured forces are linear between samples, so steps on the sample grid never
     straddle a kink; 1 ms keeps the stiffest mode (the wheel on its damper, about -700 1/s)
-    well inside the method's stability region. Returns one ``(n, 10)`` array per pair.
+    well inside the method's stability region. Returns one ``(n, 10)`` array per pair, the states
+    at the samples of the uniform grid the forces are read on.
+
+    Compiling is most of the cost (1.5-5 s of CPU against 0.1-0.2 s for the solve of a few
+    thousand samples), so the solve is compiled for a sample interval (the run's, to 9 significant
+    digits) and a length bucket (``_bucket``; the forces held at their last value past the run's
+    end, which the states at the run's samples do not see) and called in batches of ``BATCH``.
     """
     import jax
     import jax.numpy as jnp
@@ -31,22 +52,30 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     from ...solvers._inputs import SampledSignal
     from ...models._params import HalfCarParams
 
-    sub = int(math.ceil(run.dt / 1e-3 - 1e-9))
+    dt = float(f"{run.dt:.9g}")
+    sub = int(math.ceil(dt / 1e-3 - 1e-9))
+    n, nb = run.n, _bucket(run.n)
+    out, codes = [], []
     with jax.enable_x64(True):
-        ps = [jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64),
-                                     HalfCarParams.from_dict(m)) for m in models]
-        params = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *ps)
-        values = jnp.stack([jnp.stack([jnp.asarray(f["f1"]), jnp.asarray(f["f2"])], axis=1)
-                            for f in forces])
-        sig = jax.vmap(lambda v: SampledSignal(0.0, run.dt, v))(values)  # a batch of signals
-        y0 = jax.vmap(lambda p: static_equilibrium(p, "force"))(params)
-        tau = jnp.asarray(run.t - run.t[0])
-        ys, codes = _jit_force_solve(params, sig, y0, tau, float(tau[-1]), run.dt / sub)
-        ys = np.asarray(ys)
-        codes = np.asarray(codes)
-    if np.any(codes != 0):
-        raise RuntimeError(f"force-driven simulation failed (result codes {codes.tolist()})")
-    return [ys[i] for i in range(len(models))]
+        solve = _compiled_solve(nb, dt, sub)
+        for i0 in range(0, len(models), BATCH):
+            ms, fs = models[i0:i0 + BATCH], forces[i0:i0 + BATCH]
+            pad = BATCH - len(ms)
+            ms, fs = list(ms) + [ms[-1]] * pad, list(fs) + [fs[-1]] * pad
+            ps = [jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64),
+                                         HalfCarParams.from_dict(m)) for m in ms]
+            params = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *ps)
+            values = np.stack([np.stack([np.asarray(f["f1"], dtype=np.float64),
+                                         np.asarray(f["f2"], dtype=np.float64)], axis=1) for f in fs])
+            values = np.concatenate([values, np.repeat(values[:, -1:], nb - n, axis=1)], axis=1)
+            sig = jax.vmap(lambda v: SampledSignal(0.0, dt, v))(jnp.asarray(values))  # a batch of signals
+            y0 = jax.vmap(lambda p: static_equilibrium(p, "force"))(params)
+            ys, c = solve(params, sig, y0)
+            out += list(np.asarray(ys)[:BATCH - pad, :n])
+            codes += np.asarray(c)[:BATCH - pad].tolist()
+    if np.any(np.asarray(codes) != 0):
+        raise RuntimeError(f"force-driven simulation failed (result codes {codes})")
+    return out
 
 
 def _force_rhs(t, y, args):
@@ -57,27 +86,34 @@ def _force_rhs(t, y, args):
     return force_driven_rhs(t, y, params, f[0], f[1])
 
 
-def _jit_force_solve_impl(params, sig, y0, ts, t1, dt):
+#: compiled solves by (samples, sample interval, steps per sample), least recently used first
+_JIT_CACHE: dict = {}
+
+
+def _compiled_solve(n: int, dt: float, sub: int):
+    """The jitted, vmapped force-driven solve of ``n`` samples ``dt`` apart with ``sub`` steps per
+    sample, saving at the samples. The save times are concrete (closed over), so the engine takes
+    its fixed-step path for saves on the step grid (a scan over save intervals), which also
+    compiles in about half the time of the general one."""
     import jax
 
     from ...solvers._solve import solve_ode
 
-    def one(p, sg, y):
-        sol = solve_ode(_force_rhs, y, 0.0, t1, saveat=ts, args=(p, sg), dt=dt)
-        return sol.ys, sol.result
+    key = (n, dt, sub)
+    f = _JIT_CACHE.pop(key, None)
+    if f is None:
+        tau = np.arange(n) * dt
+        t1, h = float(tau[-1]), dt / sub
 
-    return jax.vmap(one)(params, sig, y0)
+        def one(p, sg, y):
+            sol = solve_ode(_force_rhs, y, 0.0, t1, saveat=tau, args=(p, sg), dt=h)
+            return sol.ys, sol.result
 
-
-_JIT_CACHE: dict = {}
-
-
-def _jit_force_solve(params, sig, y0, ts, t1, dt):
-    import equinox as eqx
-
-    if "f" not in _JIT_CACHE:
-        _JIT_CACHE["f"] = eqx.filter_jit(_jit_force_solve_impl)
-    return _JIT_CACHE["f"](params, sig, y0, ts, t1, dt)
+        f = jax.jit(jax.vmap(one))
+        while len(_JIT_CACHE) >= CACHE_SIZE:
+            _JIT_CACHE.pop(next(iter(_JIT_CACHE)))
+    _JIT_CACHE[key] = f
+    return f
 
 
 def _linear_force_system(p: dict):
