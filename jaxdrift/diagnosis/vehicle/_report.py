@@ -141,6 +141,14 @@ NOISE_CONFIRMED_MIN_N = 0.1
 FOLD_MIN_HZ = 460.0
 
 
+def _sensor_noise(prob: "_Problem") -> bool:
+    """True when a measured motion column carries sensor noise beyond the rounding of its written
+    digits (ALIAS_RATIO x the rounding's level): its share of the residual's low band is then only
+    estimated, not known."""
+    return any(v.get("sigma", 0.0) > ALIAS_RATIO * v.get("written", 0.0)
+               for v in getattr(prob, "motion_noise", {}).values())
+
+
 def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
     """The force-noise level with its 95 % interval and the sentence saying where it comes from.
 
@@ -171,6 +179,11 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             src = (f"the 4th differences of the forces give {hf:.3g} N; the residual's low band, "
                    f"which here also holds the sensor noise of the measured motion, gives "
                    f"{sigma:.3g} N; the smaller of these two upper bounds is reported")
+            if 1.0 / run.dt - fc < FOLD_MIN_HZ:
+                # content from below FOLD_MIN_HZ folds into both: no lower limit can be read
+                lo = 0.0
+                src += (f" (at {1.0 / run.dt:.4g} Hz the forces' content near and above the "
+                        f"Nyquist frequency reaches both, so its interval starts at 0)")
             sigma = hf
         elif not found and sigma > NOISE_CONFIRMED_MIN_N and sigma / ALIAS_RATIO <= hf <= ALIAS_RATIO * sigma:
             # below the reporting floor, but the forces' own 4th differences, an estimate from the
@@ -179,12 +192,12 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             found = True
             src += (f"; the forces' 4th differences give {hf:.3g} N, the same level from the top of "
                     f"the band")
-        elif (not found and sigma > NOISE_CONFIRMED_MIN_N and not prob.pipe.band
+        elif (not found and sigma > NOISE_CONFIRMED_MIN_N and not _sensor_noise(prob)
               and 1.0 / run.dt - fc >= FOLD_MIN_HZ):
             # below the reporting floor, but sampled fast enough that what folds into the low
             # band comes from above FOLD_MIN_HZ, where the force content of the independent
-            # tuning runs without noise left <= 0.005 N in the low band (docs/diagnosis.md,
-            # "Noise level"), and no sensor noise of the measured motion is in the band
+            # tuning runs without noise left <= 0.058 N in the low band (docs/diagnosis.md,
+            # "Noise level"), and the measured motion carries no noise beyond its written digits
             found = True
             src += (f"; sampled at {1.0 / run.dt:.4g} Hz, only content above {1.0 / run.dt - fc:.4g} "
                     f"Hz folds into this band, which leaves no measurable level on runs without noise")
