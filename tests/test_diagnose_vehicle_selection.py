@@ -96,3 +96,34 @@ def test_offsets_on_both_forces_are_two_offsets_not_one_and_gravity(tmp_path):
     for f in rep["findings"][:2]:
         true = 60.0 if f["channel"] == "f1" else -65.0
         assert f["interval"][0] <= true <= f["interval"][1], f
+
+
+SMALL_NOISE = dict(road_class="D", speed=12.0, fs=1000.0, duration=12.0, channel_set="all",
+                   channels=["beta", "z3", "s1", "s2"], precision=8, motion_noise={})
+
+
+@pytest.mark.parametrize("seed,level", [(5161, 0.3), (5162, 0.2)])
+def test_small_force_noise_is_reported_at_1000_hz(tmp_path, seed, level):
+    """0.2-0.3 N of force noise next to an offset, 1000 Hz, rough road D, motion written with 8
+    digits: below the old 0.5 N floor, and the forces' 4th differences hold road content (so
+    they do not confirm it). Only content above 960 Hz folds into the low band, so the level is
+    reported, within 1.5x and inside its interval (it was not reported before)."""
+    effects = [{"cause": "force_offset", "channel": "f1", "value": 20.0},
+               {"cause": "force_noise", "value": level}]
+    rep, _ = _diagnose(tmp_path, seed, **SMALL_NOISE, effects=effects)
+    got = [_target(f) for f in rep["findings"]]
+    assert got[0] == ("force_offset", "f1"), rep["findings"]
+    noise = [f for f in rep["findings"] if f["cause"] == "force_noise"]
+    assert noise, rep["findings"]
+    lo, hi = noise[0]["interval"]
+    assert lo <= level <= hi and 1 / 1.5 <= noise[0]["estimate"] / level <= 1.5, noise[0]
+
+
+def test_noise_free_500_hz_rough_run_reports_no_noise(tmp_path):
+    """The same rule on a run without force noise (500 Hz, road E, 6 digits): no noise finding,
+    the offset alone. (The low band reads 0.13 N here, from the rounding of the motion written
+    with 6 digits: the rule asks for 8.)"""
+    over = dict(SMALL_NOISE, fs=500.0, road_class="E", speed=9.0, precision=6)
+    rep, _ = _diagnose(tmp_path, 5163, **over,
+                       effects=[{"cause": "force_offset", "channel": "f1", "value": 20.0}])
+    assert [f["cause"] for f in rep["findings"]] == ["force_offset"], rep["findings"]

@@ -106,6 +106,22 @@ def welch_segments(n: int, nperseg: int) -> int:
     return max((m - nperseg) // (nperseg // 2) + 1, 1)
 
 
+def written_digits(x: np.ndarray) -> int:
+    """The fewest significant digits (3-15) that reproduce the values to 1e-12 relative, as
+    ``written_noise_sigma`` finds them; 16 for full precision or an all-zero column."""
+    x = np.asarray(x, dtype=float)
+    nz = x[x != 0]
+    if nz.size == 0:
+        return 16
+    sample = nz[:: max(1, nz.size // 2000)]
+    mag = np.floor(np.log10(np.abs(sample)))
+    for d in range(3, 16):
+        q = 10.0 ** (mag - d + 1)
+        if np.all(np.abs(np.round(sample / q) * q - sample) <= 1e-12 * np.abs(sample)):
+            return d
+    return 16
+
+
 def written_noise_sigma(x: np.ndarray) -> float:
     """Standard deviation of the rounding noise of values printed with as few significant digits
     as reproduce them (uniform over one unit of the last digit: q^2 / 12), 0 for full precision.

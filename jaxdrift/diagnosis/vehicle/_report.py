@@ -8,7 +8,8 @@ import numpy as np
 import scipy.stats
 
 from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical, method_half
-from ._detectors import MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff
+from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff,
+                         written_digits)
 from ._problem import _Problem
 from ._residuals import Residuals
 
@@ -139,6 +140,17 @@ NOISE_CONFIRMED_MIN_N = 0.1
 #: and also when only content above this frequency [Hz] folds into the low band (fs - cutoff)
 #: and no motion noise is in the band: measured on independent runs without noise
 FOLD_MIN_HZ = 460.0
+#: ... and when the measured motion is written with at least this many significant digits: the
+#: rounding of slower motion written with fewer is a staircase whose low band is not white
+#: (a van on road E at 500 Hz without force noise: 0.13 N at 9 m/s and 0.97 N at 20 m/s with
+#: 6 digits, 0.34 N at 20 m/s with 7, 0.019-0.037 N with 8, 0.005-0.013 N with 9)
+FINE_DIGITS = 8
+
+
+def _motion_digits(run) -> int:
+    """The fewest significant digits any measured motion column is written with."""
+    cols = [c for c in ("beta", "z3", "s1", "s2", "beta_rate") if run.has(c)]
+    return min((written_digits(run[c]) for c in cols), default=16)
 
 
 def _sensor_noise(prob: "_Problem") -> bool:
@@ -193,7 +205,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             src += (f"; the forces' 4th differences give {hf:.3g} N, the same level from the top of "
                     f"the band")
         elif (not found and sigma > NOISE_CONFIRMED_MIN_N and not _sensor_noise(prob)
-              and 1.0 / run.dt - fc >= FOLD_MIN_HZ):
+              and 1.0 / run.dt - fc >= FOLD_MIN_HZ and _motion_digits(run) >= FINE_DIGITS):
             # below the reporting floor, but sampled fast enough that what folds into the low
             # band comes from above FOLD_MIN_HZ, where the force content of the independent
             # tuning runs without noise left <= 0.058 N in the low band (docs/diagnosis.md,
