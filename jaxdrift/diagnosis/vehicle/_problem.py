@@ -247,7 +247,8 @@ class _Problem:
             meat += Acc.T @ Acc
         return meat
 
-    def lowband_noise(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None) -> tuple[float, float]:
+    def lowband_noise(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None,
+                      take_out_motion: bool = True) -> tuple[float, float]:
         """Force-noise level from the residual's low band, and its effective degrees of freedom.
 
         White force noise reaches every residual across the whole band, with a spectrum known
@@ -259,7 +260,8 @@ class _Problem:
         ``gains``: per force channel, the factor the correction puts on the measured samples
         (1 / scale): noise on the measured samples reaches the residual multiplied by it.
         ``ir``: impulse responses of the fitted parameters (default: the model's); the residual
-        keeps the model's row weighting either way.
+        keeps the model's row weighting either way. ``take_out_motion=False``: the sensor noise
+        found on the measured motion is left in (an upper bound where its share is uncertain).
         """
         gains = gains or {}
         ir = self.ir if ir is None else ir
@@ -287,7 +289,7 @@ class _Problem:
                 hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
                 unit += float(np.sum(hls[(nm, ch)] ** 2))
             lens[nm] = len(xl)
-            num += float(np.sum(xl * xl)) - motion_pw * len(xl)
+            num += float(np.sum(xl * xl)) - (motion_pw * len(xl) if take_out_motion else 0.0)
             den += unit * len(xl)
         # Var(sum_a sum_t x_a(t)^2) = 2 sigma^4 sum_{a,b} sum_{t,t'} c_ab(t - t')^2, with c_ab the
         # cross-covariance of residual channels a and b: they see the same force noise, so the
