@@ -126,19 +126,14 @@ def written_noise_sigma(x: np.ndarray) -> float:
     """Standard deviation of the rounding noise of values printed with as few significant digits
     as reproduce them (uniform over one unit of the last digit: q^2 / 12), 0 for full precision.
     The digits are found as the smallest count (up to 15) at which rounding leaves the values
-    unchanged to 1e-12 relative."""
+    unchanged to 1e-12 relative (``written_digits``)."""
     x = np.asarray(x, dtype=float)
-    nz = x[x != 0]
-    if nz.size == 0:
+    d = written_digits(x)
+    if d > 15:
         return 0.0
-    sample = nz[:: max(1, nz.size // 2000)]
-    mag = np.floor(np.log10(np.abs(sample)))
-    for d in range(3, 16):
-        q = 10.0 ** (mag - d + 1)
-        if np.all(np.abs(np.round(sample / q) * q - sample) <= 1e-12 * np.abs(sample)):
-            qa = 10.0 ** (np.floor(np.log10(np.abs(nz))) - d + 1)
-            return float(np.sqrt(np.mean(qa * qa) / 12.0))
-    return 0.0
+    nz = x[x != 0]
+    qa = 10.0 ** (np.floor(np.log10(np.abs(nz))) - d + 1)
+    return float(np.sqrt(np.mean(qa * qa) / 12.0))
 
 
 def lowband_cutoff(fs: float) -> float:
