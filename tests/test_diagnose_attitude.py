@@ -447,3 +447,32 @@ def test_white_rigidity_power_separates_white_from_smooth():
     assert abs(wp["power"] - sig**2) < 4 * wp["se"]
     # the total power is dominated by the deformation: the split matters
     assert np.mean(np.sum(resid**2, axis=(1, 2))) / (3 * N - 6) > 5 * sig**2
+
+
+def test_noise_free_array_position_interval_has_the_method_floor(tmp_path):
+    """Issue #13: a noise-free array (9 written digits) next to a gyro scale. The displaced sensor's
+    interval must hold the truth although no noise sets its width: the method part (written resolution,
+    the upstream scale's uncertainty, the fit's stopping step) is its floor; apparent displacements of
+    the other sensors of a few 1e-8 m lie below that floor and are not reported."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
+    import gen_attitude as ga
+
+    from jaxdrift import run_attitude_diagnosis as diagnose
+    from jaxdrift.diagnosis.attitude._array import SOLVER_STEP
+
+    case = ga.make_case({"index": 0, "stratum": "pair", "what": ["gyro_scale", "sensor_position"], "seed": 51},
+                        durations=(20.0, 20.0), rates=(500,), max_samples=10000)
+    case["effects"] = [e for e in case["effects"] if e["cause"] != "gyro_noise"]
+    case.update(precision=9, reference_every=1)
+    pos = [e for e in case["effects"] if e["cause"] == "sensor_position"][0]
+    paths = ga.make_run(case, str(tmp_path))
+    rep = diagnose(paths["csv"], paths["sensors"])
+    found = [f for f in rep["findings"] if f["cause"] == "sensor_position"]
+    assert [f["sensor"] for f in found] == [pos["sensor"]], rep["findings"]
+    f = found[0]
+    assert _inside(f, pos["value"]), (pos["value"], f)
+    half = (np.asarray(f["interval"][1]) - np.asarray(f["interval"][0])) / 2
+    assert np.all(half >= SOLVER_STEP["full"]), half

@@ -98,6 +98,10 @@ def array_fit(acc, r, w_gyro, dt, sigma_gyro, fit_bias: bool, n_blocks=20, max_r
         e = np.zeros(3)
         e[k] = 1e-6
         G[:, :, k] = (resid(theta, w_s + e, s2) - r0) / 1e-6
+    # the parameters' response to an error of the upstream gyro corrections: a rate offset on axis k
+    # (a bias error) and a relative rate error omega_k (a scale error), through the same normal equations
+    sens_bias = Hi @ np.einsum("nkp,nkj->pj", Z3, G)
+    sens_scale = Hi @ np.einsum("nkp,nkj,nj->pj", Z3, G, w_s)
     ZG = np.einsum("nkp,nkj->npj", Z3, G) * np.sqrt(s2)[None, None, :]
     meat_m = np.einsum("npj,nqj->pq", ZG, ZG)
     pred = float(np.sum(G**2 * s2[None, None, :]))
@@ -113,8 +117,42 @@ def array_fit(acc, r, w_gyro, dt, sigma_gyro, fit_bias: bool, n_blocks=20, max_r
         return resid(th, w_s, s2), jac(th, w_i, s2 / 2, resid(th, w_i, s2 / 2)).reshape(ns, -1, p)
 
     low = _low_band_fit(theta, linearised, blocks, dt * stride, first=(r0, Z3))
+    # RMS over the samples of the residual's change per unit of each parameter (all 3N components):
+    # the resolution of the written accelerations in parameter units (:func:`position_floor`)
+    gain = np.sqrt(np.mean(np.sum(Z3**2, axis=1), axis=0))
     return {"theta": theta, "cov": cov, "resid": r0.reshape(ns, N, 3), "blocks": blocks, "k_s": 1, "stride": stride,
-            "idx": idx, "wbar": w_s, "corr": corr(s2), "A": A, "low": low}
+            "idx": idx, "wbar": w_s, "corr": corr(s2), "A": A, "low": low, "gain": gain,
+            "sens_bias": sens_bias, "sens_scale": sens_scale}
+
+
+#: Gauss-Newton stopping steps of the full-band and rigid-band position fits [m]: no position is
+#: resolved more finely than the step at which its fit stops
+SOLVER_STEP = {"full": 1e-7, "low": 1e-6}
+
+
+def upstream_cov(af, N, scale_se, bias_se):
+    """Covariance (3N x 3N) of the position corrections that the uncertainty of the gyro corrections
+    applied before the array fit (scales and biases from the reference or a static segment, standard
+    errors ``scale_se``, ``bias_se`` per axis) propagates into them (:func:`array_fit`'s sensitivities)."""
+    a = np.concatenate([af["sens_scale"][: 3 * N] * np.asarray(scale_se)[None, :],
+                        af["sens_bias"][: 3 * N] * np.asarray(bias_se)[None, :]], 1)
+    return a @ a.T
+
+
+def position_floor(af, acc_rounding_rms):
+    """Per sensor and axis (N, 3) [m]: the displacement whose rigid-field signature on the sensor's
+    three axes has, per axis, the RMS of half a written step of the accelerometer cells (``sqrt(3)``
+    times their RMS rounding error ``q``): ``3 q / gain`` (the signature's norm over the 3N residual
+    components is ``gain`` per metre, :func:`array_fit`).
+
+    Rounding is not white noise once the signal is smooth on the scale of a step, and the rates in
+    ``omega~ omega~`` carry their own rounding; neither averages down with the number of samples, so
+    no estimate of a position is better than this resolution. It is the method part of a position's
+    interval (added in quadrature to the statistical part) and the least displacement reported.
+    """
+    N = af["resid"].shape[1]
+    g = np.maximum(af["gain"][: 3 * N], 1e-300)
+    return (3.0 * acc_rounding_rms / g).reshape(N, 3)
 
 
 def _low_band_fit(theta, linearised, blocks, dt_s, f_cut=RIGID_BAND_HZ, max_iter=4, first=None):
@@ -289,7 +327,9 @@ def array_step(s):
     # truth together with 95 % probability (Sidak: each at 0.95^(1/3); per-component 95 % intervals
     # would hold all three in about 86 %)
     tq_box = stats.t.ppf(1.0 - (1.0 - 0.95 ** (1.0 / 3.0)) / 2.0, nb - 1)
-    excluded, pos_found = _displaced_sensors(af, N, tq_box)
+    floor = position_floor(af, s.run.get("acc_quantisation", 0.0))
+    c_up = upstream_cov(af, N, s.scale_se, s.bias_se)
+    excluded, pos_found = _displaced_sensors(af, N, tq_box, floor, c_up)
     pos_corr = _position_corrections(s, af, positions, excluded, pos_found, fit_bias)
     if fit_bias:
         _array_gyro_biases(s, af, N, tq)
@@ -300,12 +340,18 @@ def _W_of(af):
     return lambda om: skew_np(om) @ skew_np(om) + af["corr"]
 
 
-def _relative(th, cov, j, others):
-    """Sensor j's position correction relative to the mean of ``others``, its covariance and chi-square."""
-    L = np.zeros((3, len(th)))
+def _rel_matrix(p, j, others):
+    """The linear map from the parameters to sensor j's position correction relative to the mean of ``others``."""
+    L = np.zeros((3, p))
     L[:, 3 * j : 3 * j + 3] = np.eye(3)
     for i in others:
         L[:, 3 * i : 3 * i + 3] -= np.eye(3) / len(others)
+    return L
+
+
+def _relative(th, cov, j, others):
+    """Sensor j's position correction relative to the mean of ``others``, its covariance and chi-square."""
+    L = _rel_matrix(len(th), j, others)
     d, C = L @ th, L @ cov @ L.T
     return d, C, float(d @ np.linalg.solve(C + 1e-300 * np.eye(3), d))
 
@@ -353,11 +399,23 @@ def _sensor_test(af, j, others):
     return None
 
 
-def _displaced_sensors(af, N, tq):
+def _method_half(af, N, j, others, floor, c_up, band):
+    """Method half-width (3,) of sensor j's relative position: the written resolution (``floor``, of
+    sensor j and the mean of the others), the upstream gyro corrections (``c_up``, at 95 %) and the
+    fit's stopping step, in quadrature."""
+    L = _rel_matrix(3 * N, j, others)
+    fl2 = floor[j] ** 2 + np.sum(floor[others] ** 2, 0) / len(others) ** 2
+    return np.sqrt(fl2 + 1.96**2 * np.maximum(np.diag(L @ c_up @ L.T), 0.0) + SOLVER_STEP[band] ** 2)
+
+
+def _displaced_sensors(af, N, tq, floor, c_up):
     """Greedy search for displaced sensors: each round, among the sensors whose position (relative to
     the mean of the others) departs significantly (:func:`_sensor_test`), the one that leaves the
     others most consistent with one another is taken (the model "only this sensor moved" that fits
-    best: with four sensors, one displaced by d also makes each other one look displaced by -d/3)."""
+    best: with four sensors, one displaced by d also makes each other one look displaced by -d/3).
+    A displacement must exceed its method half-width (:func:`_method_half`: the written resolution,
+    the upstream gyro corrections, the fit's stopping step) in some axis; its interval is the
+    statistical half-width and the method half-width in quadrature."""
     excluded = []
     pos_found = []
     for _ in range(N - 3):
@@ -365,18 +423,22 @@ def _displaced_sensors(af, N, tq):
         for j in range(N):
             if j in excluded:
                 continue
-            tst = _sensor_test(af, j, [i for i in range(N) if i != j and i not in excluded])
+            others = [i for i in range(N) if i != j and i not in excluded]
+            tst = _sensor_test(af, j, others)
+            if tst is not None:
+                m = _method_half(af, N, j, others, floor, c_up, tst[3])
+                tst = tst + (m,) if np.any(np.abs(tst[1]) > m) else None  # else below what the method resolves
             if tst is not None and (best is None or tst[4] < best[0][4]):
                 best = (tst, j)
         if best is None:
             break
-        (chi2, dj, Cj, band, _), j = best
-        se = np.sqrt(np.diag(Cj))
+        (chi2, dj, Cj, band, _, m), j = best
+        half = np.sqrt((tq * np.sqrt(np.diag(Cj))) ** 2 + m**2)
         excluded.append(j)
         where = (f"below {fmt(af['low']['f_cut'])} Hz, where the body moves as a rigid one" if band == "low"
                  else "over the full band")
         pos_found.append(finding(
-            "sensor_position", [float(v) for v in dj], "m", [[float(v) for v in dj - tq * se], [float(v) for v in dj + tq * se]],
+            "sensor_position", [float(v) for v in dj], "m", [[float(v) for v in dj - half], [float(v) for v in dj + half]],
             f"the accelerations of sensor {j + 1} fit the rigid-body motion seen by the gyro best with its position "
             f"moved by [{', '.join(fmt(v) for v in dj)}] m relative to the others {where} (chi-square {fmt(chi2)}, 3 dof)",
             math.sqrt(chi2), sensor=j + 1))

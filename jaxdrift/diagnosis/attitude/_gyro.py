@@ -27,7 +27,7 @@ from ...models._quaternion import (
     rotation_matrix_np,
 )
 
-__all__ = ["reference_fit", "rw_cov", "reml_drift", "static_segment"]
+__all__ = ["reference_fit", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment"]
 
 
 def _interval_sums(X, starts, ends):
@@ -134,10 +134,50 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     chi2 = float(np.sum(Wf * res**2))
     dof = max(1, len(ef) - p)
     cov = np.linalg.pinv(H, rcond=1e-12)
+    # per-interval scores (the gradient's share of each interval at the solution), for the
+    # cluster-robust covariance of :func:`cluster_cov`
+    scores = np.einsum("nkp,nk->np", J, (Wf * res).reshape(n_int, 3))
     return {
         "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
         "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]), "weak_scale": weak,
+        "scores": scores,
     }
+
+
+def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0)):
+    """:func:`reference_fit` on every other row (step 2 dt) between the anchors of the same parity as
+    the first one (each interval keeps its segment), or None where fewer than two intervals remain.
+
+    The integration's error (the step rates' interpolation, the coning of a rate that turns within a
+    step) grows at least as dt^2, so the change of the estimates from dt to 2 dt is at least three times
+    the error left at dt (Richardson): ``|theta(2 dt) - theta(dt)| / 3`` is the method part of their
+    intervals.
+    """
+    a0 = int(anchors[0])
+    anc = anchors[(anchors - a0) % 2 == 0]
+    if len(anc) < 3:
+        return None
+    first_int = np.searchsorted(anchors, anc[:-1], side="right") - 1
+    segs = [np.unique(sg[first_int], return_inverse=True)[1] for sg in seg_of_interval_per_channel]
+    par = a0 % 2
+    run2 = {"w": run["w"][par::2], "dt": 2.0 * run["dt"], "q_ref": run["q_ref"][par::2]}
+    return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var)
+
+
+def cluster_cov(fit, cluster_of_interval):
+    """Cluster-robust (sandwich) covariance of the reference fit: ``H^-1 (sum_g s_g s_g^T) H^-1 G/(G-1)``
+    with ``s_g`` the summed scores of the consecutive intervals of cluster ``g``.
+
+    The model covariance assumes independent interval errors of variance ``N^2 dt_i``; a bias that
+    wanders within its segments, or the discretisation's error that follows the motion, makes the
+    errors of neighbouring intervals correlated, which the sandwich over clusters of them sees.
+    """
+    G = int(cluster_of_interval.max()) + 1
+    if G < 3:
+        return fit["cov"]
+    sg = np.zeros((G, fit["scores"].shape[1]))
+    np.add.at(sg, cluster_of_interval, fit["scores"])
+    return fit["cov"] @ (sg.T @ sg) @ fit["cov"] * G / (G - 1)
 
 
 def rw_cov(bounds):

@@ -38,12 +38,17 @@ def estimate_white_noise(x, dt, max_order: int = 8):
     for (k, v, se), (k2, v2, se2) in zip(ests[:-1], ests[1:]):
         if np.all(np.abs(v - v2) <= 3.0 * np.maximum(se, se2) + 1e-300):
             chosen = (k2, v2, se2)
+            # the motion's share left at order k2: each order damps a motion at f by
+            # (2 sin(pi f dt))^2 / (C(2k+2, k+1) / C(2k, k)) ~ sin^2(pi f dt), at most 1/2 below
+            # fs/4, so the share left is at most the change from the order before (per column)
+            leak = np.abs(v - v2)
             break
     plateau = chosen is not None
     if chosen is None:
         chosen = min(ests, key=lambda e: float(np.sum(e[1])))
+        leak = np.zeros_like(chosen[1])
     k, v, se = chosen
-    return {"sigma": np.sqrt(v), "var": v, "var_se": se, "order": k, "plateau": plateau, "dt": dt}
+    return {"sigma": np.sqrt(v), "var": v, "var_se": se, "var_method": leak, "order": k, "plateau": plateau, "dt": dt}
 
 
 def allan(series, dt):

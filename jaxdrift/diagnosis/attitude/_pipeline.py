@@ -45,7 +45,7 @@ from ._common import (
     finding,
     fmt,
 )
-from ._gyro import reference_fit, reml_drift, rw_cov, static_segment
+from ._gyro import cluster_cov, half_rate_fit, reference_fit, reml_drift, rw_cov, static_segment
 from ._noise import allan, estimate_white_noise
 from ._report import assemble_report
 
@@ -71,6 +71,8 @@ class AttitudeState:
     noise_var_rate: float = 0.0
     noise_finding: dict | None = None
     noise_findings: list = field(default_factory=list)  # further noise findings (accel_noise), after gyro_noise
+    scale_se: np.ndarray = field(default_factory=lambda: np.zeros(3))  # of the applied corrections
+    bias_se: np.ndarray = field(default_factory=lambda: np.zeros(3))
     scale_floor: float = 0.0
     bias_floor: float = 0.0
     drift_floor: float = 0.0
@@ -146,8 +148,11 @@ def gyro_noise_step(s):
     s.noise_var_rate = max(var_pooled * dt, (floor**2) * dt, 1e-24)  # N^2 for weights
     if noise_found:
         z95 = stats.norm.ppf(0.975)
-        lo = math.sqrt(max(var_pooled - z95 * var_se, 0.0) * dt)
-        hi = math.sqrt((var_pooled + z95 * var_se) * dt)
+        # the statistical half-width and the motion's possible share at the chosen order
+        # (:func:`estimate_white_noise`'s ``var_method``, pooled like the variances) in quadrature
+        half = math.hypot(z95 * var_se, float(np.mean(wn["var_method"])))
+        lo = math.sqrt(max(var_pooled - half, 0.0) * dt)
+        hi = math.sqrt((var_pooled + half) * dt)
         s.noise_finding = {
             "cause": "gyro_noise", "estimate": N_hat, "unit": "rad/sqrt(s)", "interval": [lo, hi],
             "evidence": (
@@ -191,6 +196,7 @@ def reference_step(s):
         s.not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
     seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
     fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, s.sigma_axis**2)
+    fit["half_rate"] = half_rate_fit(s.run, s.noise_var_rate, seg_final, anchors, s.sigma_axis**2)
     infl = max(1.0, fit["chi2"] / fit["dof"])
     _reference_findings(s, fit, infl, drift, seg_final, anchors, M)
     if infl > 1.5:
@@ -238,6 +244,22 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
     """Scale, drift and bias findings per channel from the final reference fit; the corrections."""
     n_int = len(anchors) - 1
     cov = fit["cov"] * infl
+    # intervals: the model covariance (inflated by the residual chi-square) or, where larger, the
+    # sandwich over up to 16 consecutive blocks of intervals (errors correlated in time: a bias that
+    # wanders within its segments, the discretisation); the tests keep the model covariance
+    G = int(np.clip(n_int // 10, 1, 16))
+    cov_rob = cluster_cov(fit, (np.arange(n_int) * G) // n_int)
+    var_int = np.maximum(np.diag(cov), np.diag(cov_rob))
+    # the integration's share (:func:`half_rate_fit`): a third of the change at twice the step, as a
+    # standard error in quadrature (parameters: the first bias segment and the scale of each channel)
+    fh = fit["half_rate"]
+    if fh is not None:
+        for c in range(3):
+            pairs = [(fit["offs"][c], fh["offs"][c])]
+            if c not in fh["weak_scale"]:  # else the scale is held at 1 there: no comparison
+                pairs.append((fit["offs"][-1] + c, fh["offs"][-1] + c))
+            for i, i2 in pairs:
+                var_int[i] += ((fh["theta"][i2] - fit["theta"][i]) / 3.0 / stats.norm.ppf(0.975)) ** 2
     th = fit["theta"]
     offs = fit["offs"]
     z95 = stats.norm.ppf(0.975)
@@ -246,6 +268,7 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
     for c in range(3):
         ch = CHANNELS[c]
         s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
+        s_half = z95 * math.sqrt(max(var_int[sc_idx + c], 0.0))
         if c in fit["weak_scale"]:
             s.not_observed.append(f"scale of {ch} (too little rotation about it against the noise)")
         elif s_se > 0.05:
@@ -253,15 +276,18 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         elif abs(s_hat - 1) / max(s_se, 1e-300) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
             s.scale[c] = s_hat
             s.findings.append(finding(
-                "gyro_scale", float(s_hat), "ratio", [float(s_hat - z95 * s_se), float(s_hat + z95 * s_se)],
+                "gyro_scale", float(s_hat), "ratio", [float(s_hat - s_half), float(s_hat + s_half)],
                 f"rotation about {ch} between reference rows is {fmt(s_hat)} times the gyro's "
                 f"(z = {fmt(abs(s_hat - 1) / s_se)})",
                 abs(s_hat - 1) / s_se, channel=ch))
+        if c not in fit["weak_scale"]:
+            s.scale_se[c] = math.sqrt(max(var_int[sc_idx + c], 0.0))
         s.corrections[ch]["scale"] = float(s.scale[c])
         sl = slice(offs[c], offs[c + 1])
         if c in drift:
             d = drift[c]
             b0, b0_se = d["beta"], math.sqrt(d["beta_var"])
+            b0_half = z95 * b0_se
             s.findings.append(finding(
                 "gyro_bias_drift", d["K"], "rad/s/sqrt(s)", [float(v) for v in d["interval"]],
                 f"the {ch} bias over {M} segments wanders like a random walk of intensity {fmt(d['K'])} "
@@ -271,12 +297,14 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             s.corrections[ch]["bias_drift"] = float(d["K"])
         else:
             b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
+            b0_half = z95 * math.sqrt(max(var_int[offs[c]], 0.0))
+        s.bias_se[c] = b0_half / z95
         if abs(b0) / max(b0_se, 1e-300) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
             s.corrections[ch]["bias"] = float(b0)
             if c not in drift:
                 s.bias_path[:, c] = b0
             s.findings.append(finding(
-                "gyro_bias", float(b0), "rad/s", [float(b0 - z95 * b0_se), float(b0 + z95 * b0_se)],
+                "gyro_bias", float(b0), "rad/s", [float(b0 - b0_half), float(b0 + b0_half)],
                 f"integrated {ch} departs from the reference like a constant rate error of {fmt(b0)} rad/s "
                 f"(z = {fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
                 abs(b0) / b0_se, channel=ch))
@@ -338,6 +366,7 @@ def static_segment_step(s):
         ch = CHANNELS[c]
         b = float(st["mean"][c])
         se = math.sqrt(max(wn["var"][c], s.floor**2) / st["n"])
+        s.bias_se[c] = se
         s.corrections[ch]["bias"] = b
         s.bias_path[:, c] = b
         if abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
