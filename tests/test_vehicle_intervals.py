@@ -27,7 +27,7 @@ def test_joint_factor_is_sidak(k):
     joint_intervals(fs)
     z = scipy.stats.norm.ppf(1 - (1 - 0.95 ** (1 / k)) / 2)
     for f in fs:
-        assert f["interval"][1] - f["estimate"] == pytest.approx(half0 * z / 1.96, rel=1e-12)
+        assert f["interval"][1] - f["estimate"] == pytest.approx(half0 * z / scipy.stats.norm.ppf(0.975), rel=1e-12)
         assert f["interval_level"]["findings"] == k
     assert {2: 2.236, 3: 2.388}.get(k, z) == pytest.approx(z, abs=1e-3)
 
@@ -72,3 +72,16 @@ def test_joint_coverage_monte_carlo():
     band = 3 * math.sqrt(0.95 * 0.05 / n)
     assert abs(joint / n - 0.95) < band, joint / n
     assert abs(marginal / n - 0.95 ** 3) < 3 * math.sqrt(0.857 * 0.143 / n), marginal / n
+
+
+def test_vector_box_goes_to_the_joint_level_per_component():
+    """A sensor position's box (each of 3 components at 0.95^(1/3)) next to a scalar finding:
+    each component goes to 0.95^(1/6)."""
+    q = lambda lv: scipy.stats.norm.ppf(0.5 + 0.5 * lv)  # noqa: E731
+    pos = {"cause": "sensor_position", "estimate": [0.0, 1.0, 2.0],
+           "interval": [[-1.0, 0.0, 1.0], [1.0, 2.0, 3.0]]}
+    scale = {"cause": "gyro_scale", "estimate": 1.0, "interval": [0.9, 1.1]}
+    joint_intervals([pos, scale])
+    f = q(0.95 ** (1 / 6)) / q(0.95 ** (1 / 3))
+    assert pos["interval"][1] == pytest.approx([f, 1 + f, 2 + f])
+    assert scale["interval"][1] - 1.0 == pytest.approx(0.1 * q(0.95 ** 0.5) / q(0.95))

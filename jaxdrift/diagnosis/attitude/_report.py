@@ -11,6 +11,7 @@ import os
 
 import numpy as np
 
+from .._intervals import joint_intervals
 from ._common import CHANNELS, SCHEMA
 
 __all__ = ["assemble_report", "write_plots"]
@@ -28,6 +29,7 @@ def assemble_report(s):
     if s.noise_finding is not None:
         ranked.append(s.noise_finding)
     ranked.extend(s.noise_findings)
+    joint_intervals(ranked)
     if not ranked:
         ranked = [{"cause": "none", "estimate": None, "unit": None, "interval": None,
                    "evidence": "no systematic effect and no white noise above the file's rounding"}]

@@ -7,6 +7,7 @@ import math
 import numpy as np
 import scipy.stats
 
+from .._intervals import joint_intervals  # noqa: F401  (re-exported for the pipeline)
 from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical, method_half
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff,
                          written_digits)
@@ -27,39 +28,6 @@ def _chi2_sigma_interval(sigma: float, dof: float) -> tuple[float, float]:
     hi = sigma * math.sqrt(dof / scipy.stats.chi2.ppf(0.025, dof))
     return lo, hi
 
-
-
-#: the findings' intervals hold jointly at this level (all true values inside together)
-JOINT_LEVEL = 0.95
-
-
-def joint_intervals(findings: list[dict]) -> None:
-    """Widen the findings' 95 % intervals (in place) so that they hold jointly: with k findings
-    each interval is taken at the Sidak level 0.95^(1/k) (z = 2.24 for two, 2.39 for three), so
-    that all k true values lie inside their intervals together with 95 % probability, which is
-    what a report naming several causes at once claims. Each side is scaled about the estimate
-    by z_k / 1.96 (the chi-square noise interval and the scale's transformed interval are
-    asymmetric; scaling the sides keeps that); an interval from 0 (an upper bound) keeps its 0."""
-    k = sum(1 for f in findings if f.get("interval") is not None)
-    if k <= 1:
-        return
-    level = JOINT_LEVEL ** (1.0 / k)
-    factor = float(scipy.stats.norm.ppf(0.5 + 0.5 * level)) / 1.96
-
-    def widen(d: dict) -> None:
-        iv, est = d.get("interval"), d.get("estimate")
-        if iv is None or est is None:
-            return
-        lo, hi = iv
-        lo = lo if lo == 0.0 else est - factor * (est - lo)
-        d["interval"] = [float(lo), float(est + factor * (hi - est))]
-
-    for f in findings:
-        widen(f)
-        for a in f.get("indistinguishable_from", []) or []:
-            widen(a)
-        if f.get("interval") is not None:
-            f["interval_level"] = {"joint": JOINT_LEVEL, "each": round(level, 5), "findings": k}
 
 
 def evidence_sentence(c: Cause, est: float, ch: str, rms_without: float, rms_with: float, z: float,
