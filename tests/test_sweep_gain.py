@@ -110,6 +110,24 @@ def test_resimulated_pitch_error_falls_with_a_large_offset(tmp_path, monkeypatch
     g = r["gain"]
     assert g["beta_rms_after"] < 0.5 * g["beta_rms_before"], g
     assert sw.resimulated("vehicle", r)[0] == "beta_rms"
+    assert g["beta_rms_dynamic_after"] < 0.5 * g["beta_rms_dynamic_before"], g
+    assert sw.resimulated("vehicle", r, "dynamic")[0] == "beta_rms_dynamic"
+
+
+def test_dynamic_band_leaves_out_a_random_walk_and_keeps_a_body_mode():
+    """The pitch error's dynamic band (above DYNAMIC_BAND_HZ): a random walk (the drift that force
+    noise gives) keeps a small share of its RMS, a 1.5 Hz oscillation (a body mode) all of it."""
+    import numpy as np
+
+    from jaxdrift.diagnosis.vehicle._extend import DYNAMIC_BAND_HZ, _dynamic_rms, _rms
+
+    dt = 1 / 500
+    t = np.arange(int(20 / dt)) * dt
+    walk = np.cumsum(np.random.default_rng(7).standard_normal(t.size)) * 1e-5
+    mode = 1e-3 * np.sin(2 * np.pi * 1.5 * t)
+    assert DYNAMIC_BAND_HZ == 0.5
+    assert _dynamic_rms(walk, dt) < 0.2 * _rms(walk)
+    assert abs(_dynamic_rms(mode, dt) / _rms(mode) - 1) < 0.02
 
 
 def test_force_driven_solve_is_shared_between_lengths_and_padding_free():
