@@ -7,7 +7,7 @@ import pytest
 import scipy.stats
 
 from jaxdrift.diagnosis.vehicle._causes import METHOD_REL, Cause, _finding_for, method_half
-from jaxdrift.diagnosis.vehicle._report import joint_intervals
+from jaxdrift.diagnosis._intervals import joint_intervals
 
 
 def test_single_finding_keeps_its_95_interval():

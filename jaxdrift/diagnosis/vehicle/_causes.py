@@ -154,7 +154,7 @@ def _finding_for(c: Cause, theta: float, se: float, floor: float = 0.0) -> dict:
     discretisation floor of the residual, which says nothing about the estimate's own error)
     and the method component (``METHOD_REL``), in quadrature."""
     est = c.to_estimate(theta)
-    half = math.sqrt((1.96 * se) ** 2 + floor ** 2 + method_half(c.kind, theta) ** 2)
+    half = math.hypot(1.96 * se, floor, method_half(c.kind, theta))
     lo_t, hi_t = theta - half, theta + half
     if c.kind == "force_scale":
         # estimate = 1 / (1 + theta): decreasing

@@ -8,8 +8,9 @@ from ._confirm import confirm_by_resimulation, confirm_corrections
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
 from ._problem import _Problem
-from ._report import (SCHEMA, cause_findings, enforced_terms, identifiability_notes, joint_intervals,
-                      noise_level, residual_gain, static_findings)
+from .._intervals import joint_intervals
+from ._report import (SCHEMA, cause_findings, enforced_terms, identifiability_notes, noise_level,
+                      residual_gain, static_findings)
 from ._residuals import ResidualPipeline
 from ._select import _select
 

@@ -247,9 +247,17 @@ class _Problem:
             meat += Acc.T @ Acc
         return meat
 
-    def lowband_noise(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None,
-                      take_out_motion: bool = True) -> tuple[float, float]:
-        """Force-noise level from the residual's low band, and its effective degrees of freedom.
+    def lowband_noise(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None) -> tuple[float, float]:
+        """Force-noise level from the residual's low band, and its effective degrees of freedom
+        (``lowband_levels``, the sensor noise found on the measured motion taken out)."""
+        sigma, _, dof = self.lowband_levels(r, gains, ir)
+        return sigma, dof
+
+    def lowband_levels(self, r: np.ndarray, gains: dict | None = None,
+                       ir: dict | None = None) -> tuple[float, float, float]:
+        """Force-noise level from the residual's low band with the sensor noise found on the
+        measured motion taken out, the same level with it left in (an upper bound where that
+        share is uncertain), and their effective degrees of freedom (the same for both).
 
         White force noise reaches every residual across the whole band, with a spectrum known
         from the impulse responses; the comparison's own error (interpolation of inputs that
@@ -260,8 +268,7 @@ class _Problem:
         ``gains``: per force channel, the factor the correction puts on the measured samples
         (1 / scale): noise on the measured samples reaches the residual multiplied by it.
         ``ir``: impulse responses of the fitted parameters (default: the model's); the residual
-        keeps the model's row weighting either way. ``take_out_motion=False``: the sensor noise
-        found on the measured motion is left in (an upper bound where its share is uncertain).
+        keeps the model's row weighting either way.
         """
         gains = gains or {}
         ir = self.ir if ir is None else ir
@@ -269,7 +276,7 @@ class _Problem:
         fc = lowband_cutoff(fs)
         sos = scipy.signal.butter(6, fc, fs=fs, output="sos")
         blocks = self._blocks(r[:, None])
-        num = den = 0.0
+        num = den = motion = 0.0
         hls, lens = {}, {}
         parts = {}
         for nm in self.names:
@@ -289,7 +296,8 @@ class _Problem:
                 hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
                 unit += float(np.sum(hls[(nm, ch)] ** 2))
             lens[nm] = len(xl)
-            num += float(np.sum(xl * xl)) - (motion_pw * len(xl) if take_out_motion else 0.0)
+            num += float(np.sum(xl * xl))
+            motion += motion_pw * len(xl)
             den += unit * len(xl)
         # Var(sum_a sum_t x_a(t)^2) = 2 sigma^4 sum_{a,b} sum_{t,t'} c_ab(t - t')^2, with c_ab the
         # cross-covariance of residual channels a and b: they see the same force noise, so the
@@ -304,10 +312,9 @@ class _Problem:
                     ccf = ccf + scipy.signal.correlate(hls[(a, ch)], hls[(b, ch)], mode="full", method="fft")
                 var_num += 2.0 * math.sqrt(lens[a] * lens[b]) * float(np.sum(ccf ** 2))
         if den <= 0:
-            return 0.0, 1.0
-        sigma2 = max(num, 0.0) / den
+            return 0.0, 0.0, 1.0
         dof = 2.0 * den * den / max(var_num, 1e-300)
-        return math.sqrt(max(sigma2, 0.0)), dof
+        return math.sqrt(max(num - motion, 0.0) / den), math.sqrt(max(num, 0.0) / den), dof
 
 
 @dataclass

@@ -7,7 +7,6 @@ import math
 import numpy as np
 import scipy.stats
 
-from .._intervals import joint_intervals  # noqa: F401  (re-exported for the pipeline)
 from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical, method_half
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff,
                          written_digits)
@@ -117,7 +116,7 @@ FINE_DIGITS = 8
 
 def _motion_digits(run) -> int:
     """The fewest significant digits any measured motion column is written with."""
-    cols = [c for c in ("beta", "z3", "s1", "s2", "beta_rate") if run.has(c)]
+    cols = [c for c in (*MOTION_COLUMN.values(), "beta_rate") if run.has(c)]
     return min((written_digits(run[c]) for c in cols), default=16)
 
 
@@ -126,7 +125,7 @@ def _sensor_noise(prob: "_Problem") -> bool:
     digits (ALIAS_RATIO x the rounding's level): its share of the residual's low band is then only
     estimated, not known."""
     return any(v.get("sigma", 0.0) > ALIAS_RATIO * v.get("written", 0.0)
-               for v in getattr(prob, "motion_noise", {}).values())
+               for v in prob.motion_noise.values())
 
 
 def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
@@ -140,7 +139,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
     dynamic = len(sel.fit.r) > 2
     notes = []
     if dynamic:
-        sigma, dof = prob.lowband_noise(
+        sigma, with_motion, dof = prob.lowband_levels(
             sel.fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
             prob.impulse_responses(p_ext)[0])
         lo, hi = _chi2_sigma_interval(sigma, dof)
@@ -151,7 +150,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
                f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
                f"to {sel.sigma:.3g} N including the comparison's own discretisation error)")
         hf, hf_lo, hf_hi = _force_hf_noise(run)
-        from_lowband = not (prob.pipe.band and hf < sigma)
+        from_lowband = not (prob.pipe.band and hf < sigma)  # else the 4th differences give less
         if not from_lowband:
             # Sensor noise on the measured motion left in the band adds to the residual's low band
             # and reads as force noise; the forces' own 4th differences do not see it. Both are
@@ -208,14 +207,11 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
         # estimate can be off by 2x where slow motion is written with few digits (see
         # _Problem._lowband_channels): taking out too much leaves too little force noise. The
         # level with the sensor noise left in bounds it from above.
-        raw, raw_dof = prob.lowband_noise(
-            sel.fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
-            prob.impulse_responses(p_ext)[0], take_out_motion=False)
-        raw_hi = _chi2_sigma_interval(raw, raw_dof)[1]
+        raw_hi = _chi2_sigma_interval(with_motion, dof)[1]
         if raw_hi > hi:
             hi = raw_hi
             src += (f"; with the sensor noise of the measured motion left in, the low band gives "
-                    f"{raw:.3g} N, the upper end of the interval")
+                    f"{with_motion:.3g} N, the upper end of the interval")
     # the method component (the fitted noise response is only as right as the fitted model),
     # added in quadrature to each side; an upper bound keeps its interval from zero
     m = method_half("force_noise", sigma)
