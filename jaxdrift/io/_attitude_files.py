@@ -123,17 +123,16 @@ def _text_rounding(path, info, cols) -> float:
     are exact; a file whose columns were renamed by --map falls back to the reader's printed steps.
     (The reader's own steps count an exact "0" cell, as a noise-free static start writes, as a step
     of 1: on such a file they made the gyro's rounding floor 0.19 rad/s and hid a 7.9e-4 rad/s bias.)"""
-    acc_cols = cols
-    if not acc_cols or info.get("format") != "csv":
-        return _rounding_rms(info, acc_cols)
+    if not cols or info.get("format") != "csv":
+        return _rounding_rms(info, cols)
     with open(path, errors="replace") as fh:
         head = fh.readline()
         body = fh.readlines(64 << 20)
     names = [c.strip() for c in head.split(",")]
-    if not all(c in names for c in acc_cols) or not body:
-        return _rounding_rms(info, acc_cols)
+    if not all(c in names for c in cols) or not body:
+        return _rounding_rms(info, cols)
     sample = body[:: max(1, len(body) // 5000)]
-    return _written_rounding_rms(sample, [names.index(c) for c in acc_cols])
+    return _written_rounding_rms(sample, [names.index(c) for c in cols])
 
 
 def _rounding_rms(info, columns) -> float:

@@ -359,11 +359,7 @@ def _relative(th, cov, j, others):
 def _spread_chi2(th, cov, others):
     """Chi-square of the spread of the ``others``' position corrections about their mean
     (3 (len(others) - 1) dof): small where they moved together (not at all, or a common shift)."""
-    L = np.zeros((3 * (len(others) - 1), len(th)))
-    for k, i in enumerate(others[:-1]):
-        L[3 * k : 3 * k + 3, 3 * i : 3 * i + 3] += np.eye(3)
-        for m in others:
-            L[3 * k : 3 * k + 3, 3 * m : 3 * m + 3] -= np.eye(3) / len(others)
+    L = np.vstack([_rel_matrix(len(th), i, others) for i in others[:-1]])
     d = L @ th
     return float(d @ np.linalg.pinv(L @ cov @ L.T, rcond=1e-12) @ d)
 
