@@ -66,7 +66,7 @@ def _kind(header, mapping_text) -> str:
 def run_diagnose(args) -> int:
     from ..errors import UsageError
     from ..io import (DEFAULT_MODEL, DEFAULT_MODEL_LABEL, check_outputs, load_run, provenance, read_header,
-                      read_model, write_json)
+                      read_model, write_report)
     from ..io._outputs import atomic_dir, write_table
     from . import _common as c
 
@@ -170,7 +170,7 @@ def run_diagnose(args) -> int:
         "diagnose", [args.run, args.model, args.sensors], model=model_desc,
         options={"kind": kind, **opts, "plots": args.plots, "series": args.series})
     report["provenance"]["reading"] = {k: v for k, v in reading.items() if k != "quantum"}
-    write_json(args.json, report, "--json")
+    write_report(args.json, report, "--json")  # refuses inf/NaN: a degenerate fit is said in words
     bar.update(bar.total - bar.n)
     bar.close()
     c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))

@@ -27,6 +27,8 @@ from ._outputs import (
     atomic_path as atomic_path,
     check_outputs as check_outputs,
     write_json as write_json,
+    write_report as write_report,
+    check_report_finite as check_report_finite,
 )
 from ._provenance import provenance as provenance
 from ._attitude_files import (
@@ -37,4 +39,4 @@ from ._attitude_files import (
 __all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES',
            'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
            'check_outputs', 'load_run', 'provenance', 'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
-           'write_json', 'write_vehicle_run']
+           'write_json', 'write_report', 'check_report_finite', 'write_vehicle_run']

@@ -22,6 +22,7 @@ import datetime
 import hashlib
 import json
 import math
+import re
 import os
 import shutil
 import tempfile
@@ -30,7 +31,7 @@ import threading
 from ..errors import InputError
 
 __all__ = ["COMMIT_LOCK", "PENDING", "INTERRUPT", "MANIFEST", "in_commit", "park", "check_outputs", "atomic_path", "atomic_dir",
-           "write_json", "write_text", "write_table", "sha256_file", "finite_json", "remove_pending"]
+           "write_json", "write_report", "check_report_finite", "nonfinite_in_report", "write_text", "write_table", "sha256_file", "finite_json", "remove_pending"]
 
 #: held while temporary files are renamed into place
 COMMIT_LOCK = threading.RLock()
@@ -237,6 +238,50 @@ def finite_json(obj):
     if hasattr(obj, "tolist") and callable(obj.tolist):  # numpy scalar or array
         return finite_json(obj.tolist())
     return obj
+
+
+_NONFINITE_WORD = re.compile(r"(?<![A-Za-z])[-+]?(inf|infinity|nan)(?![A-Za-z])", re.IGNORECASE)
+
+
+def nonfinite_in_report(obj, where="report") -> list[str]:
+    """Where a report holds a number that is not finite (inf, NaN) or a sentence that quotes one
+    ("z = inf", "nan rad/s"): a list of ``"report.findings[0].evidence: ..."`` (empty when clean).
+
+    A report is read by people and programs; an infinite z or a NaN estimate is a degenerate fit that
+    must be said in words (the diagnoses report such a cause as not determined), never written as a
+    number or turned into a null by the JSON writer."""
+    out = []
+    if isinstance(obj, bool) or obj is None:
+        return out
+    if isinstance(obj, dict):
+        for k, v in obj.items():
+            out += nonfinite_in_report(v, f"{where}.{k}")
+    elif isinstance(obj, (list, tuple)):
+        for i, v in enumerate(obj):
+            out += nonfinite_in_report(v, f"{where}[{i}]")
+    elif isinstance(obj, str):
+        if _NONFINITE_WORD.search(obj):
+            out.append(f"{where}: {obj!r}")
+    elif hasattr(obj, "tolist") and callable(obj.tolist):
+        out += nonfinite_in_report(obj.tolist(), where)
+    elif isinstance(obj, (int, float)):
+        if not math.isfinite(obj):
+            out.append(f"{where}: {obj}")
+    return out
+
+
+def check_report_finite(report) -> None:
+    """Raise ``ValueError`` naming every place of ``report`` that holds inf or NaN (see
+    :func:`nonfinite_in_report`)."""
+    bad = nonfinite_in_report(report)
+    if bad:
+        raise ValueError("report holds non-finite values (a degenerate fit reported as a number): " + "; ".join(bad[:10]))
+
+
+def write_report(path, report, option: str = "--json") -> None:
+    """Write a diagnosis report: refused (``ValueError``, nothing written) when it holds inf or NaN."""
+    check_report_finite(report)
+    write_json(path, report, option)
 
 
 def write_text(path, text: str, option: str = "output") -> None:

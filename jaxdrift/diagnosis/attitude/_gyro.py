@@ -36,8 +36,12 @@ def _interval_sums(X, starts, ends):
     return c[ends] - c[starts]
 
 
-def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6):
+def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
+                  use=None):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
+
+    ``use``: optional (n_int, 3) bool, the (interval, global axis) cells that enter the fit (the others
+    get weight 0: a reference inconsistent there, :mod:`._consistency`, or an interval across a gap).
 
     ``seg_of_interval_per_channel``: list of 3 int arrays (segment index of each interval per channel).
     ``noise_var``: N^2 for the weights; ``sample_var``: per-channel white-noise variance per sample
@@ -45,6 +49,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     Returns parameters, covariance, residual chi-square and helpers.
     """
     w = run["w"]
+    w = np.where(np.isfinite(w), w, 0.0)  # rows of a gap: their intervals are left out by ``use``
     dt = run["dt"]
     q_ref = run["q_ref"]
     a0, aN = anchors[0], anchors[-1]
@@ -69,6 +74,9 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     int_of_row = np.searchsorted(anchors, rows, side="right") - 1
     dt_int = (ends - starts) * dt
     wts = 1.0 / (noise_var * dt_int)  # per interval (each of 3 components)
+    use = np.ones((n_int, 3), bool) if use is None else np.asarray(use, bool)
+    Wf = (wts[:, None] * use).reshape(-1)
+    w_int = wts * use.mean(1)  # the errors-in-variables weight of each interval
     for it in range(max_iter):
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
@@ -105,14 +113,13 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
         Jf = J.reshape(-1, p)
         ef = e.reshape(-1)
-        Wf = np.repeat(wts, 3)
         H = Jf.T @ (Wf[:, None] * Jf)
         g = Jf.T @ (Wf * ef)
         # errors in variables: the scale regressor sum R omega_c dt carries the same white noise as e;
         # remove the expected product, (1/s^2) sum_i w_i n_i sigma_c^2 dt^2, from score and Hessian
         weak = []
         for c in range(3):
-            eiv = float(np.sum(wts * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
+            eiv = float(np.sum(w_int * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
             if eiv > 0.25 * H[sc + c, sc + c]:
                 # the rotation about this axis is too small against the noise: the corrected Hessian
                 # would be near zero. The scale is not observable here; keep it at 1.
@@ -132,7 +139,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     # residual after the last step (linearised)
     res = ef + Jf @ step
     chi2 = float(np.sum(Wf * res**2))
-    dof = max(1, len(ef) - p)
+    dof = max(1, int(use.sum()) - p)
     cov = np.linalg.pinv(H, rcond=1e-12)
     # per-interval scores (the gradient's share of each interval at the solution), for the
     # cluster-robust covariance of :func:`cluster_cov`
@@ -140,11 +147,11 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     return {
         "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
         "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]), "weak_scale": weak,
-        "scores": scores,
+        "scores": scores, "H": H,
     }
 
 
-def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0)):
+def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), use=None):
     """:func:`reference_fit` on every other row (step 2 dt) between the anchors of the same parity as
     the first one (each interval keeps its segment), or None where fewer than two intervals remain.
 
@@ -161,7 +168,11 @@ def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     segs = [np.unique(sg[first_int], return_inverse=True)[1] for sg in seg_of_interval_per_channel]
     par = a0 % 2
     run2 = {"w": run["w"][par::2], "dt": 2.0 * run["dt"], "q_ref": run["q_ref"][par::2]}
-    return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var)
+    use2 = None
+    if use is not None:  # a half-rate interval spans whole intervals of the full fit: all of them must be used
+        last_int = np.searchsorted(anchors, anc[1:], side="right") - 2
+        use2 = np.stack([use[a : b + 1].all(0) for a, b in zip(first_int, last_int)])
+    return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var, use=use2)
 
 
 def cluster_cov(fit, cluster_of_interval):

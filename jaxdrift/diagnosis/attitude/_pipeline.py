@@ -32,6 +32,15 @@ from ...models._quaternion import (
     rotation_angle_between_np,
 )
 from ._array import array_step
+from ._consistency import consistency, still_rows
+from ._realworld import (
+    degenerate,
+    gap_mask,
+    inconsistent_findings,
+    not_determined,
+    noise_kind_step,
+    residual_noise_scale,
+)
 from ._common import (
     BIAS_FLOOR,
     CHANNELS,
@@ -61,6 +70,9 @@ class AttitudeState:
     notes: list = field(default_factory=list)
     observed: list = field(default_factory=list)
     not_observed: list = field(default_factory=list)
+    not_determined: list = field(default_factory=list)  # [{cause, channel, reason}]
+    ref_spans: list = field(default_factory=list)  # reference inconsistent: [{axis, t0, t1, rate, kind}]
+    still: np.ndarray | None = None  # rows where the reference says the body does not move
     findings: list = field(default_factory=list)  # (finding, z)
     plots: dict = field(default_factory=dict)
     # gyro noise (gyro_noise_step)
@@ -120,6 +132,7 @@ def diagnose_attitude(run, positions=None):
     if s.n_ref >= 2:
         reference_step(s)
     else:
+        noise_kind_step(s)
         static_segment_step(s)
     if positions is not None:
         array_step(s)
@@ -186,18 +199,34 @@ def reference_step(s):
     T_ref = (anchors[-1] - anchors[0]) * s.dt
     M = int(np.clip(min(n_int // 10, T_ref / 2.0), 1, 16))  # bias segments (drift test)
     int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
-    fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, s.sigma_axis**2)
+    # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
+    use, s.ref_spans, still_int = consistency(s.w, s.dt, q_ref, anchors, s.t)
+    use &= gap_mask(s.run, anchors)[:, None]
+    s.still = still_rows(s.n, anchors, still_int)
+    noise_kind_step(s)
+    sample_var = s.sigma_axis**2
+    fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    if s.noise_finding is not None and s.noise_finding["estimate_kind"] == "upper_bound" or not s.noise_found:
+        # the weights came from a noise level that may hold true motion (vibration): the residuals
+        # between reference rows say how large the noise is in the band the fit uses
+        r = residual_noise_scale(fit0)
+        if r < 1.0:
+            s.noise_var_rate *= r
+            sample_var = sample_var * r
+            fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    s.sample_var = sample_var
     s.bias_source = "reference"
     s.observed.append(f"reference attitude on {s.n_ref} rows ({n_int} intervals used)")
     if M >= 4:
-        drift = _drift_tests(s, fit0, anchors, int_seg, M)
+        drift = _drift_tests(s, fit0, anchors, int_seg, M, use)
     else:
         drift = {}
         s.not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
     seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
-    fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, s.sigma_axis**2)
-    fit["half_rate"] = half_rate_fit(s.run, s.noise_var_rate, seg_final, anchors, s.sigma_axis**2)
+    fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use)
+    fit["half_rate"] = half_rate_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use)
     infl = max(1.0, fit["chi2"] / fit["dof"])
+    s.findings.extend(inconsistent_findings(s.ref_spans, use))
     _reference_findings(s, fit, infl, drift, seg_final, anchors, M)
     if infl > 1.5:
         s.notes.append(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
@@ -216,15 +245,18 @@ def _anchors(ref_rows):
     return np.unique(np.concatenate([ref_rows[np.searchsorted(ref_rows, grid)], ref_rows[-1:]]))
 
 
-def _drift_tests(s, fit0, anchors, int_seg, M):
+def _drift_tests(s, fit0, anchors, int_seg, M, use):
     """REML test of a bias random walk on the M segment biases of each channel: {channel: result}."""
     infl = max(1.0, fit0["chi2"] / fit0["dof"])
     drift = {}
     bounds_rows = np.concatenate([anchors[:-1][np.searchsorted(int_seg, np.arange(M))], [anchors[-1]]])
     bounds = (bounds_rows - 0) * s.dt  # time since the first row
     S_rw = rw_cov(bounds)
+    bad = degenerate(fit0)
     for c in range(3):
         sl = slice(fit0["offs"][c], fit0["offs"][c + 1])
+        if any(i in bad for i in range(sl.start, sl.stop)):
+            continue  # a segment bias the reference cannot determine: no drift test
         b = fit0["theta"][sl]
         V = fit0["cov"][sl, sl] * infl
         d = reml_drift(b, V, S_rw)
@@ -265,15 +297,24 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
     z95 = stats.norm.ppf(0.975)
     sc_idx = offs[-1]
     rows_int = np.clip(np.searchsorted(anchors, np.arange(s.n), side="right") - 1, 0, n_int - 1)
+    bad = degenerate(fit)
+    lost = {sp["axis"] for sp in s.ref_spans}
     for c in range(3):
         ch = CHANNELS[c]
+        why_lost = (f"; the reference is inconsistent about the global {', '.join(sorted(lost))} axis and was left out there"
+                    if lost else "")
         s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
         s_half = z95 * math.sqrt(max(var_int[sc_idx + c], 0.0))
         if c in fit["weak_scale"]:
-            s.not_observed.append(f"scale of {ch} (too little rotation about it against the noise)")
+            not_determined(s, "gyro_scale", ch, "too little rotation about it against the noise")
+        elif sc_idx + c in bad or not s_se > 0 or not math.isfinite(s_hat):
+            not_determined(s, "gyro_scale", ch, _degenerate_reason(fit, sc_idx + c) + why_lost)
         elif s_se > 0.05:
-            s.not_observed.append(f"scale of {ch} (too little rotation about it: SE {fmt(s_se)})")
-        elif abs(s_hat - 1) / max(s_se, 1e-300) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
+            not_determined(s, "gyro_scale", ch, f"too little rotation about it: standard error {fmt(s_se)}")
+        elif not 0.5 < s_hat < 2.0:
+            not_determined(s, "gyro_scale", ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
+                           "the gyro disagree in a way no scale explains" + why_lost)
+        elif abs(s_hat - 1) / s_se > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
             s.scale[c] = s_hat
             s.findings.append(finding(
                 "gyro_scale", float(s_hat), "ratio", [float(s_hat - s_half), float(s_hat + s_half)],
@@ -286,8 +327,15 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         sl = slice(offs[c], offs[c + 1])
         if c in drift:
             d = drift[c]
-            b0, b0_se = d["beta"], math.sqrt(d["beta_var"])
+            b0, b0_se = d["beta"], math.sqrt(max(d["beta_var"], 0.0))
             b0_half = z95 * b0_se
+        else:
+            b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
+            b0_half = z95 * math.sqrt(max(var_int[offs[c]], 0.0))
+        if offs[c] in bad or not b0_se > 0 or not math.isfinite(b0):
+            not_determined(s, "gyro_bias", ch, _degenerate_reason(fit, offs[c]) + why_lost)
+            continue
+        if c in drift:
             s.findings.append(finding(
                 "gyro_bias_drift", d["K"], "rad/s/sqrt(s)", [float(v) for v in d["interval"]],
                 f"the {ch} bias over {M} segments wanders like a random walk of intensity {fmt(d['K'])} "
@@ -295,11 +343,8 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
                 math.sqrt(max(d["lr"], 0.0)), channel=ch))
             s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
             s.corrections[ch]["bias_drift"] = float(d["K"])
-        else:
-            b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
-            b0_half = z95 * math.sqrt(max(var_int[offs[c]], 0.0))
         s.bias_se[c] = b0_half / z95
-        if abs(b0) / max(b0_se, 1e-300) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
+        if abs(b0) / b0_se > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
             s.corrections[ch]["bias"] = float(b0)
             if c not in drift:
                 s.bias_path[:, c] = b0
@@ -308,6 +353,13 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
                 f"integrated {ch} departs from the reference like a constant rate error of {fmt(b0)} rad/s "
                 f"(z = {fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
                 abs(b0) / b0_se, channel=ch))
+
+
+def _degenerate_reason(fit, i):
+    if not abs(fit["H"][i, i]) > 1e-300:
+        return "degenerate fit: the reference intervals carry no information on it (a standard error of 0, an infinite z)"
+    return ("degenerate fit: the reference intervals do not tell it apart from the other parameters (a direction "
+            "without information; its standard error would be 0 and its z infinite)")
 
 
 def _reference_attitude_error(s, ref_rows, lam):

@@ -11,6 +11,7 @@ import os
 
 import numpy as np
 
+from ...io._outputs import check_report_finite
 from .._intervals import joint_intervals
 from ._common import CHANNELS, SCHEMA
 
@@ -41,6 +42,7 @@ def assemble_report(s):
         "extended_model": {"corrections": s.corrections},
         "gain": s.gain if s.gain is not None else {"metric": None, "before": None, "after": None},
         "observability": {"used": s.observed, "not_observed": s.not_observed, "notes": s.notes},
+        "not_determined": s.not_determined,
         "allan": None if allan is None else {
             "series": allan["series"], "N": allan["fit"]["N"], "B": allan["fit"]["B"], "K": allan["fit"]["K"],
             "units": {"N": "rad/sqrt(s)", "B": "rad/s", "K": "rad/s/sqrt(s)"},
@@ -48,6 +50,7 @@ def assemble_report(s):
         "run": {"rows": int(n), "dt": float(dt), "duration_s": float(T), "reference_rows": s.n_ref,
                 "sensors": 0 if s.positions is None else int(s.positions.shape[0])},
     }
+    check_report_finite(report)  # every attitude report, wherever it is made (CLI, API, tests, sweeps)
     return report
 
 

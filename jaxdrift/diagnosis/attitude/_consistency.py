@@ -1,0 +1,170 @@
+"""Is the reference attitude consistent with the gyro? Still spans, and spans where it is not.
+
+Real reference attitudes come from an estimator (a flight controller's EKF, a GNSS/INS), not from
+the truth: an estimator still converging turns its heading while the vehicle stands, and a heading
+reset jumps. A gyro bias cannot do either (it is nearly constant), a scale error cannot act while
+the body does not rotate; fitted as gyro errors they give absurd scales and biases. Per reference
+interval (between anchor rows) the gyro is integrated as it was measured and compared with the
+reference, both as rates in the global frame:
+
+- ``gamma``: the gyro's rotation over the interval, ``rho``: the reference's, ``d = rho - gamma``
+  (a constant gyro bias ``b`` gives ``d = -S b``);
+- windows of at least :data:`WINDOW_S` (and 3 intervals) hold their means and standard errors;
+- the **gyro says still** in a window whose mean gyro rate is below :data:`STILL_GYRO` and the
+  **reference says still** where its rate is below :data:`STILL_REF`;
+- on a stretch of consecutive gyro-still windows the reference is **inconsistent** on a global axis
+  where both its rate and the discrepancy leave the stretch's median by more than
+  :data:`REF_DEV` and 5 standard errors (the reference turns, the gyro does not follow: a bias
+  drift moves the discrepancy but not the reference, a true slow rotation moves the reference but
+  not the discrepancy); when more than a third of the stretch's windows do, the whole stretch;
+- anywhere, an interval whose discrepancy jumps from its neighbours' median by more than
+  :data:`REF_JUMP` and 10 robust standard deviations is a jump of the reference (a reset).
+
+The flagged (interval, axis) cells are left out of the reference fit; the spans are reported
+as ``reference_inconsistent`` findings.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.ndimage import median_filter
+
+from ...models._quaternion import (
+    cumulative_quat_product_np,
+    quat_conjugate_np,
+    quat_exp_np,
+    quat_log_np,
+    quat_multiply_np,
+    rotation_matrix_np,
+)
+
+__all__ = ["interval_rates", "consistency", "still_rows", "AXES",
+           "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "WINDOW_S"]
+
+AXES = ("x", "y", "z")
+WINDOW_S = 0.5  # s: shortest window of reference intervals
+STILL_GYRO = 0.05  # rad/s: a mean gyro rate below this (bias included) is "the gyro says still"
+STILL_REF = 0.02  # rad/s: a reference rate below this is "the reference says the body does not move"
+REF_DEV = 0.01  # rad/s: a reference that turns this much faster than the gyro while still is inconsistent
+REF_JUMP = 0.05  # rad/s over one interval, and 10 robust standard deviations: a jump (reset)
+
+
+def interval_rates(w, dt, q_ref, anchors):
+    """Per anchor interval: global-frame gyro rate ``gamma``, reference rate ``rho`` (rad/s), the
+    interval lengths and the interval start times' row indices. Rates held over each step."""
+    w = np.where(np.isfinite(w), w, 0.0)
+    a0, aN = int(anchors[0]), int(anchors[-1])
+    P = np.empty((aN - a0 + 1, 4))
+    P[0] = [1.0, 0.0, 0.0, 0.0]
+    P[1:] = cumulative_quat_product_np(quat_exp_np(w[a0:aN] * dt))
+    P /= np.linalg.norm(P, axis=1, keepdims=True)
+    starts, ends = anchors[:-1], anchors[1:]
+    rel = quat_multiply_np(quat_conjugate_np(P[starts - a0]), P[ends - a0])
+    qa, qb = q_ref[starts], q_ref[ends]
+    Ra = rotation_matrix_np(qa)
+    dti = (ends - starts) * dt
+    gamma = np.einsum("nab,nb->na", Ra, quat_log_np(rel)) / dti[:, None]
+    rho = np.einsum("nab,nb->na", Ra, quat_log_np(quat_multiply_np(quat_conjugate_np(qa), qb))) / dti[:, None]
+    return gamma, rho, dti
+
+
+def _windows(t_start, dti):
+    """Window index of each interval: at least WINDOW_S long and 3 intervals (the last one absorbs a rest)."""
+    width = max(WINDOW_S, 3.0 * float(np.median(dti)))
+    win = np.floor((t_start - t_start[0]) / width).astype(int)
+    n_win = int(win.max()) + 1
+    counts = np.bincount(win, minlength=n_win)
+    # merge windows with fewer than 3 intervals into the one before
+    remap = np.arange(n_win)
+    for j in range(1, n_win):
+        if counts[j] < 3:
+            remap[j] = remap[j - 1]
+    return np.unique(remap[win], return_inverse=True)[1]
+
+
+def _window_stats(x, dti, win):
+    nw = int(win.max()) + 1
+    wsum = np.bincount(win, weights=dti, minlength=nw)
+    mean = np.stack([np.bincount(win, weights=x[:, c] * dti, minlength=nw) / wsum for c in range(3)], 1)
+    n = np.bincount(win, minlength=nw)
+    dev = x - mean[win]
+    var = np.stack([np.bincount(win, weights=dev[:, c] ** 2, minlength=nw) for c in range(3)], 1)
+    se = np.sqrt(var / np.maximum(n - 1, 1)[:, None] / np.maximum(n, 1)[:, None])
+    return mean, se
+
+
+def consistency(w, dt, q_ref, anchors, t):
+    """Flag the (interval, global axis) cells where the reference is inconsistent with the gyro.
+
+    Returns ``use`` (n_int, 3) bool (False: leave out), ``spans``: a list of dicts ``{axis, t0, t1,
+    rate, kind}`` (``kind`` "moves while the gyro is still" or "jump"), and ``still``: the per-interval
+    flag "gyro and reference both say still".
+    """
+    gamma, rho, dti = interval_rates(w, dt, q_ref, anchors)
+    d = rho - gamma
+    n_int = len(dti)
+    use = np.ones((n_int, 3), bool)
+    spans = []
+    t_start = t[anchors[:-1]]
+    t_end = t[anchors[1:]]
+    win = _windows(t_start, dti) if n_int >= 3 else np.zeros(n_int, int)
+    G, _ = _window_stats(gamma, dti, win)
+    Rm, Rse = _window_stats(rho, dti, win)
+    D, Dse = _window_stats(d, dti, win)
+    g_still = np.linalg.norm(G, axis=1) < STILL_GYRO
+    still_int = (g_still & (np.linalg.norm(Rm, axis=1) < STILL_REF))[win]
+    # stretches of consecutive gyro-still windows (two or more)
+    j = 0
+    nw = len(g_still)
+    while j < nw:
+        if not g_still[j]:
+            j += 1
+            continue
+        k = j
+        while k < nw and g_still[k]:
+            k += 1
+        if k - j >= 2:
+            for c in range(3):
+                sl = slice(j, k)
+                dev_r = np.abs(Rm[sl, c] - np.median(Rm[sl, c]))
+                dev_d = np.abs(D[sl, c] - np.median(D[sl, c]))
+                bad = (dev_r > np.maximum(REF_DEV, 5 * Rse[sl, c])) & (dev_d > np.maximum(REF_DEV, 5 * Dse[sl, c]))
+                if not bad.any():
+                    continue
+                if bad.sum() > (k - j) / 3.0:
+                    bad[:] = True
+                cells = np.isin(win, np.arange(j, k)[bad])
+                use[cells, c] = False
+                _add_spans(spans, cells, t_start, t_end, AXES[c], float(np.max(np.abs(D[sl, c][bad] - np.median(D[sl, c])))),
+                           "turns while the gyro says still")
+        j = k
+    # jumps (resets), moving or not
+    if n_int >= 7:
+        for c in range(3):
+            loc = median_filter(d[:, c], size=7, mode="nearest")
+            res = d[:, c] - loc
+            sig = 1.4826 * float(np.median(np.abs(res - np.median(res))))
+            jump = (np.abs(res) > max(REF_JUMP, 10.0 * sig)) & (np.abs(res) * dti > 5e-3)
+            if jump.any():
+                cells = jump | np.r_[jump[1:], False] | np.r_[False, jump[:-1]]
+                use[cells, c] = False
+                _add_spans(spans, cells, t_start, t_end, AXES[c], float(np.max(np.abs(res[jump]))), "jumps")
+    spans.sort(key=lambda s: (s["t0"], s["axis"]))
+    return use, spans, still_int
+
+
+def _add_spans(spans, cells, t_start, t_end, axis, rate, kind):
+    idx = np.nonzero(cells)[0]
+    if not len(idx):
+        return
+    breaks = np.nonzero(np.diff(idx) > 1)[0]
+    for a, b in zip(np.r_[0, breaks + 1], np.r_[breaks, len(idx) - 1]):
+        spans.append({"axis": axis, "t0": float(t_start[idx[a]]), "t1": float(t_end[idx[b]]), "rate": rate, "kind": kind})
+
+
+def still_rows(n, anchors, still_int):
+    """Row mask of the intervals where the gyro and the reference both say the body does not move."""
+    m = np.zeros(n, bool)
+    for i in np.nonzero(still_int)[0]:
+        m[anchors[i] : anchors[i + 1]] = True
+    return m

@@ -1,0 +1,155 @@
+"""What real runs need beyond the model: the gyro noise as an estimate or an upper bound, causes the
+run cannot determine, gaps, and the findings of an inconsistent reference.
+
+- :func:`noise_kind_step`: a gyro noise level is an *estimate* only where the reference says the
+  body does not move (the longest still span of :mod:`._consistency`, at least
+  :data:`STILL_MIN_S`); anywhere else the high-order differences may hold true motion (a flying
+  vehicle's vibration is broadband up to the sampling rate) and the level is reported as an
+  *upper bound* (``"estimate_kind": "upper_bound"``, interval ``[0, bound]``).
+- :func:`degenerate`: the parameters of the reference fit that its information matrix does not
+  determine (a null direction): reported as not determined, never as a finding with a standard
+  error of 0 and an infinite z.
+- :func:`not_determined`: the report's ``not_determined`` entries ``{cause, channel, reason}``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy import stats
+
+from ._common import fmt
+from ._noise import estimate_white_noise
+
+__all__ = ["noise_kind_step", "degenerate", "not_determined", "gap_mask", "residual_noise_scale",
+           "inconsistent_findings", "STILL_MIN_S"]
+
+STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estimate (and 256 rows)
+
+
+def _longest(mask):
+    """(i0, i1) of the longest run of True in ``mask`` (or (0, 0))."""
+    if mask is None or not mask.any():
+        return 0, 0
+    m = np.r_[False, mask, False].astype(np.int8)
+    d = np.diff(m)
+    a, b = np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]
+    k = int(np.argmax(b - a))
+    return int(a[k]), int(b[k])
+
+
+def _noise_interval(wn, dt):
+    var = float(np.mean(wn["var"]))
+    var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
+    half = math.hypot(stats.norm.ppf(0.975) * var_se, float(np.mean(wn["var_method"])))
+    return math.sqrt(var * dt), math.sqrt(max(var - half, 0.0) * dt), math.sqrt((var + half) * dt)
+
+
+def noise_kind_step(s):
+    """Gyro noise from a span where the reference says the body does not move, else an upper bound."""
+    dt = s.dt
+    i0, i1 = _longest(s.still)
+    if i1 - i0 >= max(256, STILL_MIN_S / dt):
+        wn = estimate_white_noise(s.w[i0:i1], dt)
+        if wn["plateau"] and math.sqrt(float(np.mean(wn["var"]))) > s.floor:
+            N, lo, hi = _noise_interval(wn, dt)
+            s.sigma_axis, s.noise_found = wn["sigma"], True
+            s.noise_var_rate = max(float(np.mean(wn["var"])) * dt, s.floor**2 * dt, 1e-24)
+            s.noise_finding = {
+                "cause": "gyro_noise", "estimate_kind": "estimate", "estimate": N, "unit": "rad/sqrt(s)",
+                "interval": [lo, hi],
+                "evidence": (
+                    f"while the reference says the body does not move (t = {fmt(s.t[i0])}..{fmt(s.t[i1 - 1])} s), "
+                    f"order-{wn['order']} differences of the rates are white with per-sample std "
+                    f"{', '.join(fmt(v) for v in wn['sigma'])} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
+                    f"N = sigma sqrt(dt) = {fmt(N)} rad/sqrt(s) = {fmt(np.degrees(N) * 60)} deg/sqrt(h)"
+                ),
+            }
+            return
+    why = ("no reference attitude says where the body does not move" if s.still is None
+           else f"the reference says the body does not move for {fmt((i1 - i0) * dt)} s only (at least "
+                f"{fmt(STILL_MIN_S)} s needed)")
+    f = s.noise_finding
+    if f is None:
+        wn = s.wn
+        if wn is None or wn["plateau"]:
+            return  # white, but below the file's rounding: no noise finding
+        _, _, hi = _noise_interval(wn, dt)
+        if hi <= s.floor * math.sqrt(dt):
+            return
+        s.noise_finding = {
+            "cause": "gyro_noise", "estimate_kind": "upper_bound", "estimate": hi, "unit": "rad/sqrt(s)",
+            "interval": [0.0, hi],
+            "evidence": (f"an upper bound: the rates' order-{wn['order']} differences never became white (the motion "
+                         f"reaches the sampling rate) and {why}; N <= {fmt(hi)} rad/sqrt(s)"),
+        }
+        return
+    hi = float(f["interval"][1])
+    f["estimate_kind"] = "upper_bound"
+    f["estimate"], f["interval"] = hi, [0.0, hi]
+    f["evidence"] = (f"an upper bound, N <= {fmt(hi)} rad/sqrt(s): {why}, so the rates' high-frequency "
+                     f"content may be true motion (vibration); " + f["evidence"])
+
+
+def residual_noise_scale(fit):
+    """chi2/dof of a reference fit: the noise in the fit's band against the weights' noise level."""
+    return float(fit["chi2"]) / max(float(fit["dof"]), 1.0)
+
+
+def degenerate(fit, tol=1e-10):
+    """Indices of the fit's parameters that lie on a null direction of its information matrix."""
+    H = np.asarray(fit["H"], float)
+    dg = np.abs(np.diag(H))
+    bad = set(int(i) for i in np.nonzero(~(dg > 1e-300))[0])
+    d = np.sqrt(np.where(dg > 1e-300, dg, 1.0))
+    Hn = H / np.outer(d, d)
+    Hn[list(bad), :] = 0.0
+    Hn[:, list(bad)] = 0.0
+    ev, V = np.linalg.eigh(0.5 * (Hn + Hn.T))
+    null = ev < tol * max(float(ev.max()), 1e-300)
+    if null.any():
+        bad |= set(int(i) for i in np.nonzero(np.any(np.abs(V[:, null]) > 0.1, axis=1))[0])
+    return bad
+
+
+def not_determined(s, cause, channel, reason):
+    """Record a cause the run cannot determine (report ``not_determined``; also ``observability``)."""
+    s.not_determined.append({"cause": cause, "channel": channel, "reason": reason})
+    s.not_observed.append(f"{cause} of {channel} ({reason})")
+
+
+def gap_mask(run, anchors):
+    """Per anchor interval: False where it holds a gap (rows outside the time base's segments, or
+    rates that are not finite): nothing was measured there to compare with the reference."""
+    n = len(run["t"])
+    bad_rows = ~np.isfinite(run["w"]).all(1)
+    segs = (run.get("time_base") or {}).get("segments")
+    ok = np.ones(len(anchors) - 1, bool)
+    if segs and len(segs) > 1:
+        seg_id = np.full(n, -1)
+        for k, (i0, i1) in enumerate(segs):
+            seg_id[int(i0):int(i1)] = k
+        bad_rows |= seg_id < 0
+        ok &= seg_id[anchors[:-1]] == seg_id[anchors[1:] - 1]
+    cum = np.r_[0, np.cumsum(bad_rows)]
+    ok &= (cum[anchors[1:]] - cum[anchors[:-1]]) == 0
+    return ok
+
+
+def inconsistent_findings(spans, use):
+    """``reference_inconsistent`` findings (ranked first: every other finding depends on the reference)."""
+    out = []
+    for sp in spans:
+        if sp["kind"] == "jumps":
+            what = (f"the reference jumps about the global {sp['axis']} axis at t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s "
+                    f"({fmt(sp['rate'])} rad/s more than the gyro over one interval: a reset)")
+        else:
+            what = (f"the reference turns about the global {sp['axis']} axis over t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s "
+                    f"while the gyro says the body is still (up to {fmt(sp['rate'])} rad/s; an estimator still "
+                    f"converging, a heading reset)")
+        f = {"cause": "reference_inconsistent", "axis": sp["axis"], "span_s": [sp["t0"], sp["t1"]],
+             "estimate": sp["rate"], "unit": "rad/s", "interval": None,
+             "evidence": what + f"; left out of the gyro fit on that axis ({int((~use).sum())} interval-axis cells in all)"}
+        out.append((f, 1e9 - len(out)))
+    return out
