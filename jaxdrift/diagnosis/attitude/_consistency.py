@@ -45,7 +45,7 @@ AXES = ("x", "y", "z")
 WINDOW_S = 0.5  # s: shortest window of reference intervals
 STILL_GYRO = 0.05  # rad/s: a mean gyro rate below this (bias included) is "the gyro says still"
 STILL_REF = 0.02  # rad/s: a reference rate below this is "the reference says the body does not move"
-REF_DEV = 0.01  # rad/s: a reference that turns this much faster than the gyro while still is inconsistent
+REF_DEV = 0.005  # rad/s: a reference that turns this much faster than the gyro while still is inconsistent
 REF_JUMP = 0.05  # rad/s over one interval, and 10 robust standard deviations: a jump (reset)
 
 

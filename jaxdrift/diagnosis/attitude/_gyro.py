@@ -37,8 +37,11 @@ def _interval_sums(X, starts, ends):
 
 
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
-                  use=None):
+                  use=None, hold_scale=(), hold_bias=()):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
+
+    ``hold_scale``: channels whose scale is held at 1, ``hold_bias``: parameter indices of biases held
+    at 0 (what the run does not determine, so that the rest is judged on its own).
 
     ``use``: optional (n_int, 3) bool, the (interval, global axis) cells that enter the fit (the others
     get weight 0: a reference inconsistent there, :mod:`._consistency`, or an interval across a gap).
@@ -120,7 +123,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         weak = []
         for c in range(3):
             eiv = float(np.sum(w_int * (ends - starts))) * sample_var[c] * dt**2 / s[c] ** 2
-            if eiv > 0.25 * H[sc + c, sc + c]:
+            if eiv > 0.25 * H[sc + c, sc + c] or c in hold_scale:
                 # the rotation about this axis is too small against the noise: the corrected Hessian
                 # would be near zero. The scale is not observable here; keep it at 1.
                 weak.append(c)
@@ -131,6 +134,11 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
                 continue
             g[sc + c] += eiv
             H[sc + c, sc + c] -= eiv
+        for i in hold_bias:
+            H[i, :] = 0.0
+            H[:, i] = 0.0
+            H[i, i] = 1.0
+            g[i] = theta[i]
         step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
         theta = theta + step
         se = np.sqrt(np.abs(np.diag(np.linalg.pinv(H, rcond=1e-12))))
@@ -151,7 +159,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     }
 
 
-def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), use=None):
+def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), use=None,
+                  hold_scale=(), hold_bias=()):
     """:func:`reference_fit` on every other row (step 2 dt) between the anchors of the same parity as
     the first one (each interval keeps its segment), or None where fewer than two intervals remain.
 
@@ -172,7 +181,8 @@ def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     if use is not None:  # a half-rate interval spans whole intervals of the full fit: all of them must be used
         last_int = np.searchsorted(anchors, anc[1:], side="right") - 2
         use2 = np.stack([use[a : b + 1].all(0) for a, b in zip(first_int, last_int)])
-    return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var, use=use2)
+    return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var, use=use2, hold_scale=hold_scale,
+                         hold_bias=hold_bias)
 
 
 def cluster_cov(fit, cluster_of_interval):

@@ -73,6 +73,7 @@ class AttitudeState:
     not_determined: list = field(default_factory=list)  # [{cause, channel, reason}]
     ref_spans: list = field(default_factory=list)  # reference inconsistent: [{axis, t0, t1, rate, kind}]
     still: np.ndarray | None = None  # rows where the reference says the body does not move
+    held_bias: dict = field(default_factory=dict)  # channels whose bias the reference cannot see
     findings: list = field(default_factory=list)  # (finding, z)
     plots: dict = field(default_factory=dict)
     # gyro noise (gyro_noise_step)
@@ -214,7 +215,25 @@ def reference_step(s):
             s.noise_var_rate *= r
             sample_var = sample_var * r
             fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
-    s.sample_var = sample_var
+    # a scale on a null direction of the fit (a body that does not turn about that axis: the scale
+    # and the bias say the same) is held at 1, so that the bias is judged on its own
+    sc0 = fit0["offs"][-1]
+    hold = tuple(c for c in range(3) if sc0 + c in degenerate(fit0))
+    if hold:
+        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold)
+    # with axes of the reference left out, a bias about an axis that is nearly the left-out one keeps a
+    # sliver of information (the tilt's share): held at 0, and said so, instead of spreading its
+    # uncertainty into the other channels
+    held = {}
+    if not use.all():
+        for i in sorted(degenerate(fit0, tol=1e-3, share=0.5)):
+            c = int(np.searchsorted(fit0["offs"], i, side="right") - 1)
+            if c < 3:
+                held[c] = True
+        if held:
+            fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use,
+                                 hold_scale=hold, hold_bias=_bias_idx(fit0, held))
+    s.held_bias = held
     s.bias_source = "reference"
     s.observed.append(f"reference attitude on {s.n_ref} rows ({n_int} intervals used)")
     if M >= 4:
@@ -223,14 +242,22 @@ def reference_step(s):
         drift = {}
         s.not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
     seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
-    fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use)
-    fit["half_rate"] = half_rate_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use)
+    fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
+    if held:
+        fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
+                            hold_bias=_bias_idx(fit, held))
+    fit["half_rate"] = half_rate_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use,
+                                     hold_scale=hold)
     infl = max(1.0, fit["chi2"] / fit["dof"])
     s.findings.extend(inconsistent_findings(s.ref_spans, use))
     _reference_findings(s, fit, infl, drift, seg_final, anchors, M)
     if infl > 1.5:
         s.notes.append(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
     _reference_attitude_error(s, ref_rows, fit["lam"])
+
+
+def _bias_idx(fit, channels):
+    return tuple(i for c in channels for i in range(fit["offs"][c], fit["offs"][c + 1]))
 
 
 def _anchors(ref_rows):
@@ -332,6 +359,10 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         else:
             b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
             b0_half = z95 * math.sqrt(max(var_int[offs[c]], 0.0))
+        if c in s.held_bias:
+            not_determined(s, "gyro_bias", ch, "its axis is nearly the global axis on which the reference is "
+                           "inconsistent: the rest of the reference hardly sees it (held at 0 while fitting the others)")
+            continue
         if offs[c] in bad or not b0_se > 0 or not math.isfinite(b0):
             not_determined(s, "gyro_bias", ch, _degenerate_reason(fit, offs[c]) + why_lost)
             continue

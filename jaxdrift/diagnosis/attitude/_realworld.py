@@ -97,8 +97,10 @@ def residual_noise_scale(fit):
     return float(fit["chi2"]) / max(float(fit["dof"]), 1.0)
 
 
-def degenerate(fit, tol=1e-10):
-    """Indices of the fit's parameters that lie on a null direction of its information matrix."""
+def degenerate(fit, tol=1e-10, share=0.1):
+    """Indices of the fit's parameters that lie on a null direction of its information matrix (an
+    eigenvalue of the normalised matrix below ``tol`` of the largest, the parameter's share of the
+    direction above ``share``)."""
     H = np.asarray(fit["H"], float)
     dg = np.abs(np.diag(H))
     bad = set(int(i) for i in np.nonzero(~(dg > 1e-300))[0])
@@ -109,7 +111,7 @@ def degenerate(fit, tol=1e-10):
     ev, V = np.linalg.eigh(0.5 * (Hn + Hn.T))
     null = ev < tol * max(float(ev.max()), 1e-300)
     if null.any():
-        bad |= set(int(i) for i in np.nonzero(np.any(np.abs(V[:, null]) > 0.1, axis=1))[0])
+        bad |= set(int(i) for i in np.nonzero(np.any(np.abs(V[:, null]) > share, axis=1))[0])
     return bad
 
 

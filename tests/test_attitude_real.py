@@ -1,0 +1,146 @@
+"""The attitude diagnosis on what real runs hold: an estimator's reference that turns while the
+gyro says still, a heading reset, true vibration that is not sensor noise, degenerate fits, and the
+rule that no report holds inf or NaN. The truth is integrated here with scipy's Rotation.
+"""
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from jaxdrift.diagnosis.attitude import diagnose_attitude
+from jaxdrift.io._outputs import check_report_finite, nonfinite_in_report, write_report
+
+DATA = Path(__file__).parent / "data" / "ulog"
+
+
+def _integrate(q0, w, dt):
+    """Body-to-global attitudes (scalar first) with each rate held over its step."""
+    steps = Rotation.from_rotvec(w[:-1] * dt)
+    r = [q0]
+    for k in range(len(steps)):
+        r.append(r[-1] * steps[k])
+    q = np.array([x.as_quat() for x in r])
+    return q[:, [3, 0, 1, 2]]
+
+
+def _run(t, w_meas, q_ref_rows):
+    return {"path": "synthetic", "t": t, "dt": float(t[1] - t[0]), "w": w_meas, "q_ref": q_ref_rows, "acc": None,
+            "extra_columns": [], "quantisation": 0.0, "acc_quantisation": 0.0, "warnings": [], "info": {}}
+
+
+def _by(rep, cause):
+    return [f for f in rep["findings"] if f["cause"] == cause]
+
+
+def test_converging_heading_is_named_and_the_bias_still_found():
+    rng = np.random.default_rng(4101)
+    dt, T = 0.004, 12.0
+    t = np.arange(0.0, T, dt)
+    n = len(t)
+    bias = np.array([0.004, 0.0, 0.0])
+    N = 2e-4
+    w_meas = bias + rng.normal(0.0, N / math.sqrt(dt), (n, 3))  # the body stands still
+    tilt = Rotation.from_euler("xyz", [0.05, -0.03, 0.0])
+    # the estimator's heading still converges: it turns about global z at a decaying rate
+    yaw = -0.06 * 4.0 * (1.0 - np.exp(-t / 4.0))
+    q = (Rotation.from_euler("z", yaw[:, None]) * tilt).as_quat()[:, [3, 0, 1, 2]]
+    q_ref = np.full((n, 4), np.nan)
+    q_ref[::5] = q[::5]  # 50 Hz reference
+    rep, _ = diagnose_attitude(_run(t, w_meas, q_ref))
+    check_report_finite(rep)
+    inc = _by(rep, "reference_inconsistent")
+    assert inc and {f["axis"] for f in inc} == {"z"}
+    assert inc[0]["span_s"][1] - inc[0]["span_s"][0] > 0.5 * T
+    b = {f["channel"]: f for f in _by(rep, "gyro_bias")}
+    assert "wx" in b and b["wx"]["interval"][0] <= 0.004 <= b["wx"]["interval"][1]
+    assert not _by(rep, "gyro_scale")
+    assert all(abs(f["estimate"]) < 0.01 for f in b.values())
+    nd = {(d["cause"], d["channel"]) for d in rep["not_determined"]}
+    assert ("gyro_bias", "wz") in nd and all(d["reason"] for d in rep["not_determined"])
+    # the body stands still by the reference on x and y but not on z: the noise is only a bound
+    g = _by(rep, "gyro_noise")
+    assert g and g[0]["estimate_kind"] in ("estimate", "upper_bound") and g[0]["interval"][1] >= N
+
+
+def test_vibration_is_a_bound_and_does_not_hide_a_bias_and_a_reset_is_named():
+    rng = np.random.default_rng(4102)
+    dt, T = 0.004, 30.0
+    t = np.arange(0.0, T, dt)
+    n = len(t)
+    smooth = np.column_stack([0.3 * np.sin(2 * np.pi * 0.4 * t), 0.25 * np.sin(2 * np.pi * 0.3 * t + 1.0),
+                              0.4 * np.sin(2 * np.pi * 0.1 * t)])
+    # true vibration: broadband 30-110 Hz, far above any MEMS gyro's noise
+    spec = np.fft.rfft(rng.normal(size=(n, 3)), axis=0)
+    f = np.fft.rfftfreq(n, dt)
+    spec[(f < 30) | (f > 110)] = 0.0
+    vib = np.fft.irfft(spec, n, axis=0)
+    vib *= 0.08 / vib.std(0)
+    w_true = smooth + vib
+    bias = np.array([0.0, 0.003, -0.002])
+    N = 1e-4
+    w_meas = w_true + bias + rng.normal(0.0, N / math.sqrt(dt), (n, 3))
+    q = _integrate(Rotation.identity(), w_true, dt)
+    # a heading reset at t = 15 s: the estimator's yaw jumps by 0.08 rad
+    jump = Rotation.from_euler("z", np.where(t >= 15.0, 0.08, 0.0)[:, None])
+    q = (jump * Rotation.from_quat(q[:, [1, 2, 3, 0]])).as_quat()[:, [3, 0, 1, 2]]
+    q_ref = np.full((n, 4), np.nan)
+    q_ref[::8] = q[::8]  # 31 Hz
+    rep, _ = diagnose_attitude(_run(t, w_meas, q_ref))
+    check_report_finite(rep)
+    inc = _by(rep, "reference_inconsistent")
+    assert any(f["axis"] == "z" and f["span_s"][0] - 0.5 <= 15.0 <= f["span_s"][1] + 0.5 for f in inc), inc
+    b = {f["channel"]: f for f in _by(rep, "gyro_bias")}
+    for c, ch in ((1, "wy"), (2, "wz")):
+        assert ch in b, rep["findings"]
+        assert b[ch]["interval"][0] <= bias[c] <= b[ch]["interval"][1] or abs(b[ch]["estimate"] - bias[c]) < 0.25 * abs(bias[c])
+    assert all(abs(f["estimate"] - 1) < 0.1 for f in _by(rep, "gyro_scale"))
+    g = _by(rep, "gyro_noise")
+    assert g and g[0]["estimate_kind"] == "upper_bound" and g[0]["interval"][0] == 0.0
+    assert g[0]["interval"][1] >= N and g[0]["estimate"] == g[0]["interval"][1]
+    assert rep["gain"]["after"] < rep["gain"]["before"]
+
+
+def test_noise_is_an_estimate_where_the_reference_says_still():
+    rng = np.random.default_rng(4103)
+    dt, T = 0.005, 20.0
+    t = np.arange(0.0, T, dt)
+    n = len(t)
+    on = np.clip((t - 6.0) / 2.0, 0.0, 1.0)
+    w_true = on[:, None] * np.column_stack([0.2 * np.sin(2 * np.pi * 0.5 * t), 0.1 * np.cos(2 * np.pi * 0.7 * t),
+                                            0.3 * np.sin(2 * np.pi * 0.2 * t)])
+    N = 3e-4
+    w_meas = w_true + rng.normal(0.0, N / math.sqrt(dt), (n, 3))
+    q = _integrate(Rotation.identity(), w_true, dt)
+    q_ref = np.full((n, 4), np.nan)
+    q_ref[::4] = q[::4]
+    rep, _ = diagnose_attitude(_run(t, w_meas, q_ref))
+    g = _by(rep, "gyro_noise")[0]
+    assert g["estimate_kind"] == "estimate"
+    assert g["interval"][0] <= N <= g["interval"][1]
+    assert "does not move" in g["evidence"]
+
+
+def test_report_writer_refuses_non_finite(tmp_path):
+    bad = {"findings": [{"cause": "gyro_scale", "estimate": 1.0, "interval": [0.9, 1.1],
+                         "evidence": "rotation about wz is -20.4 times the gyro's (z = inf)"}], "x": [1.0, float("nan")]}
+    where = nonfinite_in_report(bad)
+    assert len(where) == 2 and "evidence" in where[0] and "x[1]" in where[1]
+    with pytest.raises(ValueError, match="non-finite"):
+        write_report(tmp_path / "r.json", bad)
+    assert not (tmp_path / "r.json").exists()
+    ok = {"evidence": "no information: an infinite z would follow (degenerate fit)", "v": [1.0, None, 2]}
+    assert nonfinite_in_report(ok) == []
+    write_report(tmp_path / "ok.json", ok)
+    assert json.loads((tmp_path / "ok.json").read_text())["v"] == [1.0, None, 2]
+    assert nonfinite_in_report({"a": np.array([1.0, np.inf])}) == ["report.a[1]: inf"]
+
+
+def test_pyulog_fixtures_and_licence_are_there():
+    for name in ("sample.ulg", "sample_log_small.ulg", "sample_appended_multiple.ulg"):
+        assert (DATA / name).stat().st_size > 100_000
+        assert (DATA / name).read_bytes()[:7] == b"ULog\x01\x12\x35"
+    assert "Redistributions of source code must retain" in (DATA / "LICENSE-pyulog").read_text()
