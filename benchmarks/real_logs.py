@@ -67,7 +67,7 @@ def time_base(t):
             "gaps": int(np.sum(st > 2.5 * nom)), "longest_gap_s": float(st.max())}
 
 
-def interval_errors(tg, w, tq, q, bias):
+def interval_errors(tg, w, tq, q, bias, scale=np.ones(3)):
     """Per reference interval: body-frame rotation vector of (gyro rel)^-1 (ref rel), and its length."""
     dtg = np.median(np.diff(tg))
     rq = R.from_quat(q[:, [1, 2, 3, 0]])
@@ -78,7 +78,7 @@ def interval_errors(tg, w, tq, q, bias):
     cuts = cuts[(cuts >= tq[i0]) & (cuts <= tq[i1])]
     k = np.searchsorted(tg, 0.5 * (cuts[1:] + cuts[:-1]))  # sample whose hold interval covers the piece
     k = np.clip(k, 0, len(tg) - 1)
-    piece = R.from_rotvec((w[k] - bias) * np.diff(cuts)[:, None])
+    piece = R.from_rotvec((w[k] - bias) / scale * np.diff(cuts)[:, None])
     owner = np.searchsorted(tq[i0:i1 + 1], cuts[:-1], side="right") - 1
     # gap: a gyro step longer than 2.5 nominal inside the interval
     gstep = np.diff(tg, prepend=tg[0] - dtg)[k]
@@ -96,7 +96,8 @@ def interval_errors(tg, w, tq, q, bias):
     e = (prod.inv() * ref).as_rotvec()
     dt = tq[ia + 1] - tq[ia]
     ok = ~bad & (counts > 0)
-    return {"t": tq[ia], "dt": dt, "e": e, "ok": ok}
+    wbar = np.stack([np.bincount(owner, weights=(w[k, c] - bias[c]) * np.diff(cuts), minlength=len(ia)) for c in range(3)], 1)
+    return {"t": tq[ia], "dt": dt, "e": e, "ok": ok, "wbar": wbar / np.maximum(dt, 1e-12)[:, None]}
 
 def constant_bias(tg, w, tq, q, n_blocks=20, iters=3):
     """Constant gyro bias that makes the integrated gyro follow the reference between consecutive
@@ -135,6 +136,35 @@ def attitude_error(tg, w, tq, q, bias, scale=np.ones(3)):
     G = R.from_quat(Q[refidx])
     ang = (G.inv() * rq[i0 + 1:i1 + 1]).magnitude()
     return float(np.sqrt(np.mean(ang ** 2))), float(ang.max())
+
+
+def bias_and_scale(tg, w, tq, q, n_blocks=20, iters=4):
+    """Constant bias and scale per axis (``w = s omega + b``) by the same interval comparison: per
+    axis, least squares of the interval errors on ``[dt, mean rate x dt]``; standard errors from the
+    spread of 20 block estimates."""
+    b, sc = np.zeros(3), np.ones(3)
+    for _ in range(iters):
+        ie = interval_errors(tg, w, tq, q, b, sc)
+        ok = ie["ok"]
+        e, dt, wb, t = ie["e"][ok], ie["dt"][ok], ie["wbar"][ok], ie["t"][ok]
+        for c in range(3):
+            X = np.column_stack([dt, wb[:, c] * dt]) / sc[c]
+            db, dsc = np.linalg.lstsq(X, -e[:, c], rcond=None)[0]
+            b[c] += db
+            sc[c] += dsc
+    blk = np.minimum(((t - t[0]) / (t[-1] - t[0] + 1e-12) * n_blocks).astype(int), n_blocks - 1)
+    est = []
+    for j in range(n_blocks):
+        m = blk == j
+        if m.sum() < 3:
+            continue
+        row = []
+        for c in range(3):
+            X = np.column_stack([dt[m], wb[m, c] * dt[m]]) / sc[c]
+            row.append(np.linalg.lstsq(X, -e[m, c], rcond=None)[0][1] + sc[c])
+        est.append(row)
+    est = np.array(est)
+    return {"bias": b, "scale": sc, "scale_se": est.std(0, ddof=1) / np.sqrt(len(est))}
 
 
 def clear_axes(cb):
@@ -178,6 +208,7 @@ def analyse(path, csv_dir=None):
     after = attitude_error(d["tg"], d["w"], d["tq"], d["q"], b_j, s_j)
     after_ind = attitude_error(d["tg"], d["w"], d["tq"], d["q"], cb["bias"])
     clear = clear_axes(cb)
+    bs = bias_and_scale(d["tg"], d["w"], d["tq"], d["q"])
     biases = {f["channel"]: f for f in rep["findings"] if f["cause"] == "gyro_bias"}
     checks = {"exit_0": True, "finite": _floats_ok(rep)}
     named = []
@@ -202,7 +233,8 @@ def analyse(path, csv_dir=None):
         "gyro": time_base(d["tg"]), "attitude": time_base(d["tq"]),
         "independent": {"bias": cb["bias"].tolist(), "se": cb["se"].tolist(), "first_half": cb["first_half"].tolist(),
                         "second_half": cb["second_half"].tolist(), "halves_se": cb["halves_se"].tolist(),
-                        "clear": clear, "intervals": cb["intervals"], "intervals_skipped": cb["intervals_skipped"],
+                        "clear": clear, "scale_with_bias": bs["scale"].tolist(), "scale_se": bs["scale_se"].tolist(),
+                        "intervals": cb["intervals"], "intervals_skipped": cb["intervals_skipped"],
                         "attitude_error_rms_after": after_ind[0]},
         "flight_controller_bias": fc,
         "findings": [{k: f.get(k) for k in ("cause", "channel", "axis", "span_s", "estimate_kind", "estimate", "interval")}

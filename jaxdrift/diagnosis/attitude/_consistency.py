@@ -93,20 +93,29 @@ def _window_stats(x, dti, win):
     return mean, se
 
 
-def consistency(w, dt, q_ref, anchors, t):
+def consistency(w, dt, q_ref, anchors, t, valid=None):
     """Flag the (interval, global axis) cells where the reference is inconsistent with the gyro.
 
     Returns ``use`` (n_int, 3) bool (False: leave out), ``spans``: a list of dicts ``{axis, t0, t1,
-    rate, kind}`` (``kind`` "moves while the gyro is still" or "jump"), and ``still``: the per-interval
-    flag "gyro and reference both say still".
+    rate, kind}`` (``kind`` "turns while the gyro says still" or "jumps"), and ``still``: the
+    per-interval flag "gyro and reference both say still".
     """
     gamma, rho, dti = interval_rates(w, dt, q_ref, anchors)
+    n_all = len(dti)
+    idx = np.arange(n_all) if valid is None else np.nonzero(valid)[0]
+    use_all, still_all = np.ones((n_all, 3), bool), np.zeros(n_all, bool)
+    if len(idx) < 3:
+        return use_all, [], still_all
+    use, spans, still = _flag(gamma[idx], rho[idx], dti[idx], t[anchors[:-1]][idx], t[anchors[1:]][idx])
+    use_all[idx], still_all[idx] = use, still
+    return use_all, spans, still_all
+
+
+def _flag(gamma, rho, dti, t_start, t_end):
     d = rho - gamma
     n_int = len(dti)
     use = np.ones((n_int, 3), bool)
     spans = []
-    t_start = t[anchors[:-1]]
-    t_end = t[anchors[1:]]
     win = _windows(t_start, dti) if n_int >= 3 else np.zeros(n_int, int)
     G, _ = _window_stats(gamma, dti, win)
     Rm, Rse = _window_stats(rho, dti, win)
@@ -148,7 +157,7 @@ def consistency(w, dt, q_ref, anchors, t):
             if jump.any():
                 cells = jump | np.r_[jump[1:], False] | np.r_[False, jump[:-1]]
                 use[cells, c] = False
-                _add_spans(spans, cells, t_start, t_end, AXES[c], float(np.max(np.abs(res[jump]))), "jumps")
+                _add_spans(spans, cells, t_start, t_end, AXES[c], np.where(jump, np.abs(res), 0.0), "jumps")
     spans.sort(key=lambda s: (s["t0"], s["axis"]))
     return use, spans, still_int
 
@@ -159,7 +168,8 @@ def _add_spans(spans, cells, t_start, t_end, axis, rate, kind):
         return
     breaks = np.nonzero(np.diff(idx) > 1)[0]
     for a, b in zip(np.r_[0, breaks + 1], np.r_[breaks, len(idx) - 1]):
-        spans.append({"axis": axis, "t0": float(t_start[idx[a]]), "t1": float(t_end[idx[b]]), "rate": rate, "kind": kind})
+        r = float(np.max(rate[idx[a] : idx[b] + 1])) if np.ndim(rate) else float(rate)
+        spans.append({"axis": axis, "t0": float(t_start[idx[a]]), "t1": float(t_end[idx[b]]), "rate": r, "kind": kind})
 
 
 def still_rows(n, anchors, still_int):

@@ -35,6 +35,7 @@ from ._array import array_step
 from ._consistency import consistency, still_rows
 from ._realworld import (
     degenerate,
+    finite_segments,
     gap_mask,
     inconsistent_findings,
     not_determined,
@@ -74,6 +75,7 @@ class AttitudeState:
     ref_spans: list = field(default_factory=list)  # reference inconsistent: [{axis, t0, t1, rate, kind}]
     still: np.ndarray | None = None  # rows where the reference says the body does not move
     held_bias: dict = field(default_factory=dict)  # channels whose bias the reference cannot see
+    segments: list = field(default_factory=list)  # [i0, i1) row ranges with finite rates (between gaps)
     findings: list = field(default_factory=list)  # (finding, z)
     plots: dict = field(default_factory=dict)
     # gyro noise (gyro_noise_step)
@@ -149,13 +151,15 @@ def diagnose_attitude(run, positions=None):
 def gyro_noise_step(s):
     """White gyro noise N from the rates' high-order differences; floors for the systematic effects."""
     run, dt, w = s.run, s.dt, s.w
-    wn = estimate_white_noise(w, dt)
+    s.segments = finite_segments(run)
+    i0, i1 = max(s.segments, key=lambda r: r[1] - r[0])
+    wn = estimate_white_noise(w[i0:i1], dt)  # on the longest segment: differences never span a gap
     var_pooled = float(np.mean(wn["var"]))
     var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
     # below this a "noise" is rounding or numerical differentiation, not a gyro: three times the
     # quantisation of the file's digits, or 1e-6 of the RMS rate (navigation-grade gyros at 1 kHz
     # are near 2e-5 rad/s per sample, far above)
-    floor = max(3.0 * run["quantisation"], 1e-6 * float(np.sqrt(np.mean(w**2))), 1e-15)
+    floor = max(3.0 * run["quantisation"], 1e-6 * float(np.sqrt(np.nanmean(w**2))), 1e-15)
     noise_found = wn["plateau"] and math.sqrt(var_pooled) > floor
     sigma_axis = wn["sigma"] if noise_found else np.zeros(3)
     N_hat = math.sqrt(var_pooled * dt) if noise_found else 0.0
@@ -201,8 +205,9 @@ def reference_step(s):
     M = int(np.clip(min(n_int // 10, T_ref / 2.0), 1, 16))  # bias segments (drift test)
     int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
-    use, s.ref_spans, still_int = consistency(s.w, s.dt, q_ref, anchors, s.t)
-    use &= gap_mask(s.run, anchors)[:, None]
+    valid = gap_mask(s.run, anchors)
+    use, s.ref_spans, still_int = consistency(s.w, s.dt, q_ref, anchors, s.t, valid)
+    use &= valid[:, None]
     s.still = still_rows(s.n, anchors, still_int)
     noise_kind_step(s)
     sample_var = s.sigma_axis**2
@@ -215,6 +220,13 @@ def reference_step(s):
             s.noise_var_rate *= r
             sample_var = sample_var * r
             fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    r = residual_noise_scale(fit0)
+    if r > 1.5 and np.any(sample_var > 0):
+        # the interval errors are r times (in variance) what white noise of the differences' level
+        # gives (a low-pass filtered gyro: its differences see less noise than its integral carries):
+        # the scales' errors-in-variables correction takes the level the intervals show
+        sample_var = sample_var * r
+        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     # a scale on a null direction of the fit (a body that does not turn about that axis: the scale
     # and the bias say the same) is held at 1, so that the bias is judged on its own
     sc0 = fit0["offs"][-1]
@@ -336,12 +348,12 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             not_determined(s, "gyro_scale", ch, "too little rotation about it against the noise")
         elif sc_idx + c in bad or not s_se > 0 or not math.isfinite(s_hat):
             not_determined(s, "gyro_scale", ch, _degenerate_reason(fit, sc_idx + c) + why_lost)
-        elif s_se > 0.05:
-            not_determined(s, "gyro_scale", ch, f"too little rotation about it: standard error {fmt(s_se)}")
+        elif max(s_se, s_half / z95) > 0.05:
+            not_determined(s, "gyro_scale", ch, f"too little rotation about it: standard error {fmt(max(s_se, s_half / z95))}")
         elif not 0.5 < s_hat < 2.0:
             not_determined(s, "gyro_scale", ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
                            "the gyro disagree in a way no scale explains" + why_lost)
-        elif abs(s_hat - 1) / s_se > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
+        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
             s.scale[c] = s_hat
             s.findings.append(finding(
                 "gyro_scale", float(s_hat), "ratio", [float(s_hat - s_half), float(s_hat + s_half)],
@@ -375,7 +387,7 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
             s.corrections[ch]["bias_drift"] = float(d["K"])
         s.bias_se[c] = b0_half / z95
-        if abs(b0) / b0_se > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
+        if abs(b0) / _test_se(b0_se, b0_half / z95, infl) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
             s.corrections[ch]["bias"] = float(b0)
             if c not in drift:
                 s.bias_path[:, c] = b0
@@ -386,7 +398,17 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
                 abs(b0) / b0_se, channel=ch))
 
 
+def _test_se(se_model, se_interval, infl):
+    """The standard error a finding is tested with: the model's (residual-inflated) one; where the
+    residuals between reference rows are more than twice the white-noise level in variance (a real
+    reference, with its own errors and a gyro filtered before logging: the white model is evidently
+    wrong), the interval's one (cluster-robust, integration) when larger."""
+    return max(se_model, se_interval) if infl > 2.0 else se_model
+
+
 def _degenerate_reason(fit, i):
+    if fit["dof"] <= 1 and not np.any(fit["scores"]):
+        return "no reference interval free of gaps and inconsistencies is left to compare the gyro with"
     if not abs(fit["H"][i, i]) > 1e-300:
         return "degenerate fit: the reference intervals carry no information on it (a standard error of 0, an infinite z)"
     return ("degenerate fit: the reference intervals do not tell it apart from the other parameters (a direction "
@@ -394,37 +416,46 @@ def _degenerate_reason(fit, i):
 
 
 def _reference_attitude_error(s, ref_rows, lam):
-    """Attitude error integrated from the first reference row, before and after the corrections."""
-    t, dt, w, n, q_ref = s.t, s.dt, s.w, s.n, s.run["q_ref"]
-    a0 = ref_rows[0]
-    ok = ref_rows
-    q0 = q_ref[a0]
-
-    def err_of(rates):
-        r_ = np.concatenate([rates[a0 : a0 + 1], rates[a0:], rates[-1:], rates[-1:]], 0)
-        w0, w1, w2, wm = r_[1:-2], r_[2:-1], r_[3:], r_[:-3]
-        step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
-        qi = integrate_rates_np(q0, step, dt)
-        return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
-
-    e_before = err_of(w)
+    """Attitude error integrated from the first reference row of each segment (a gap restarts it on
+    the reference), before and after the corrections."""
+    t, dt, w, q_ref = s.t, s.dt, s.w, s.run["q_ref"]
     w_corr = (w - s.bias_path) / s.scale
-    e_after = err_of(w_corr)
+    e_before, e_after, rows = [], [], []
+    for i0, i1 in s.segments:
+        ok = ref_rows[(ref_rows >= i0) & (ref_rows < i1)]
+        if not len(ok):
+            continue
+        a0 = ok[0]
+
+        def err_of(rates):
+            r_ = np.concatenate([rates[a0 : a0 + 1], rates[a0:i1], rates[i1 - 1 : i1], rates[i1 - 1 : i1]], 0)
+            w0, w1, w2, wm = r_[1:-2], r_[2:-1], r_[3:], r_[:-3]
+            step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
+            qi = integrate_rates_np(q_ref[a0], step, dt)
+            return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
+
+        e_before.append(err_of(w))
+        e_after.append(err_of(w_corr))
+        rows.append(ok)
+    e_before, e_after, ok = np.concatenate(e_before), np.concatenate(e_after), np.concatenate(rows)
+    a0 = ok[0]
     thr = np.radians(DRIFT_OFF_DEG)
     off = np.nonzero(e_before > thr)[0]
     s.sim_err["attitude"] = {
         "rms": float(np.sqrt(np.mean(e_before**2))), "max_abs": float(np.max(e_before)),
         "drift_off_time_s": float(t[ok[off[0]]] - t[a0]) if len(off) else None,
         "threshold_rad": float(thr), "unit": "rad",
-        "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row) and the reference",
+        "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row of each "
+                "segment between gaps) and the reference",
     }
     s.gain = {"metric": "attitude_error_rms", "before": s.sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
     s.plots["attitude"] = (t[ok], e_before, e_after)
+    n = s.n
     # error series for Allan: per-sample rate error against the reference (dense reference only)
     if s.n_ref >= 0.9 * n and n > 1000:
         dq = quat_multiply_np(quat_conjugate_np(q_ref[:-1]), q_ref[1:])
         w_ref = quat_log_np(dq) / dt
-        good = np.isfinite(w_ref).all(1)
+        good = np.isfinite(w_ref).all(1) & np.isfinite(w[:-1]).all(1)
         s.allan_series = (w[:-1] - s.scale * w_ref)[good]
         s.allan_label = "gyro minus reference-derived rate"
 
@@ -470,7 +501,9 @@ def static_segment_step(s):
 def allan_step(s):
     """Allan deviation of the best available error series (the rates themselves as the last resort)."""
     if s.allan_series is None:
-        s.allan_series, s.allan_label = s.w - s.bias_path, "measured rates (the motion dominates at long tau)"
+        i0, i1 = max(s.segments, key=lambda r: r[1] - r[0])
+        s.allan_series = (s.w - s.bias_path)[i0:i1]
+        s.allan_label = "measured rates (the motion dominates at long tau)"
     if s.allan_series.shape[0] >= 64:
         a = allan(s.allan_series, s.dt)
         a["series"] = s.allan_label

@@ -23,7 +23,7 @@ from ._common import fmt
 from ._noise import estimate_white_noise
 
 __all__ = ["noise_kind_step", "degenerate", "not_determined", "gap_mask", "residual_noise_scale",
-           "inconsistent_findings", "STILL_MIN_S"]
+           "inconsistent_findings", "finite_segments", "STILL_MIN_S"]
 
 STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estimate (and 256 rows)
 
@@ -72,22 +72,10 @@ def noise_kind_step(s):
                 f"{fmt(STILL_MIN_S)} s needed)")
     f = s.noise_finding
     if f is None:
-        wn = s.wn
-        if wn is None or wn["plateau"]:
-            return  # white, but below the file's rounding: no noise finding
-        _, _, hi = _noise_interval(wn, dt)
-        if hi <= s.floor * math.sqrt(dt):
-            return
-        s.noise_finding = {
-            "cause": "gyro_noise", "estimate_kind": "upper_bound", "estimate": hi, "unit": "rad/sqrt(s)",
-            "interval": [0.0, hi],
-            "evidence": (f"an upper bound: the rates' order-{wn['order']} differences never became white (the motion "
-                         f"reaches the sampling rate) and {why}; N <= {fmt(hi)} rad/sqrt(s)"),
-        }
-        return
+        return  # below the file's rounding, or never white (not separable from the motion: a note says so)
     hi = float(f["interval"][1])
     f["estimate_kind"] = "upper_bound"
-    f["estimate"], f["interval"] = hi, [0.0, hi]
+    f["interval"] = [0.0, hi]  # the estimate stays the differences' level, as for force noise
     f["evidence"] = (f"an upper bound, N <= {fmt(hi)} rad/sqrt(s): {why}, so the rates' high-frequency "
                      f"content may be true motion (vibration); " + f["evidence"])
 
@@ -119,6 +107,19 @@ def not_determined(s, cause, channel, reason):
     """Record a cause the run cannot determine (report ``not_determined``; also ``observability``)."""
     s.not_determined.append({"cause": cause, "channel": channel, "reason": reason})
     s.not_observed.append(f"{cause} of {channel} ({reason})")
+
+
+def finite_segments(run):
+    """[i0, i1) row ranges between gaps: the time base's ``segments`` where the reader gives them,
+    cut further wherever a rate is not finite (a gap's rows)."""
+    fin = np.isfinite(run["w"]).all(1)
+    segs = (run.get("time_base") or {}).get("segments") or [(0, len(fin))]
+    out = []
+    for i0, i1 in segs:
+        m = np.r_[False, fin[int(i0):int(i1)], False].astype(np.int8)
+        d = np.diff(m)
+        out += [(int(i0) + int(a), int(i0) + int(b)) for a, b in zip(np.nonzero(d == 1)[0], np.nonzero(d == -1)[0])]
+    return out or [(0, len(fin))]
 
 
 def gap_mask(run, anchors):
