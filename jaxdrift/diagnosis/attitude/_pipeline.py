@@ -421,9 +421,25 @@ def _reference_attitude_error(s, ref_rows, lam):
     t, dt, w, q_ref = s.t, s.dt, s.w, s.run["q_ref"]
     w_corr = (w - s.bias_path) / s.scale
     e_before, e_after, rows = [], [], []
+    # restart at each gap and after each short span where the reference is inconsistent (a reset
+    # would otherwise stay in the error for the rest of the run); rows inside such a span are not
+    # compared. A span over a quarter of the run stays in (nothing would be left to compare).
+    inside = np.zeros(len(t), bool)
+    cuts = []
+    for sp in s.ref_spans:
+        if sp["t1"] - sp["t0"] > 0.25 * (t[-1] - t[0]):
+            continue
+        a, b = np.searchsorted(t, sp["t0"]), np.searchsorted(t, sp["t1"], side="right")
+        inside[a + 1 : b] = True
+        cuts.append(b)
+    pieces = []
     for i0, i1 in s.segments:
+        edges = sorted({i0, i1, *[c for c in cuts if i0 < c < i1]})
+        pieces += list(zip(edges[:-1], edges[1:]))
+    ref_rows = ref_rows[~inside[ref_rows]]
+    for i0, i1 in pieces:
         ok = ref_rows[(ref_rows >= i0) & (ref_rows < i1)]
-        if not len(ok):
+        if len(ok) < 2:
             continue
         a0 = ok[0]
 
@@ -437,6 +453,9 @@ def _reference_attitude_error(s, ref_rows, lam):
         e_before.append(err_of(w))
         e_after.append(err_of(w_corr))
         rows.append(ok)
+    if not rows:  # every piece too short: no comparison left (at most single reference rows)
+        s.not_observed.append("attitude error (no two reference rows in one piece between gaps and inconsistent spans)")
+        return
     e_before, e_after, ok = np.concatenate(e_before), np.concatenate(e_after), np.concatenate(rows)
     a0 = ok[0]
     thr = np.radians(DRIFT_OFF_DEG)
@@ -446,7 +465,7 @@ def _reference_attitude_error(s, ref_rows, lam):
         "drift_off_time_s": float(t[ok[off[0]]] - t[a0]) if len(off) else None,
         "threshold_rad": float(thr), "unit": "rad",
         "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row of each "
-                "segment between gaps) and the reference",
+                "segment between gaps and after each span where the reference is inconsistent) and the reference",
     }
     s.gain = {"metric": "attitude_error_rms", "before": s.sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
     s.plots["attitude"] = (t[ok], e_before, e_after)
