@@ -20,10 +20,10 @@ Checks (per log): every clear axis is named as ``gyro_bias`` within 25 % of the 
 with an interval that contains it; no report value is inf or NaN; no ``gyro_scale`` off by more than
 10 % and no ``gyro_bias`` over 0.2 rad/s; the attitude error falls wherever a bias was found.
 
-Needs ``pip install pyulog`` (and jaxdrift's ULog reader for .ulg runs, or ``--csv DIR`` with the
-logs' CSV exports ``DIR/NAME.csv``). Example::
+Needs ``pip install -e ".[ulog]"`` (pyulog, and jaxdrift's ULog reader). Examples::
 
     python benchmarks/real_logs.py tests/data/ulog/*.ulg --out docs/validation/real_logs.json
+    python benchmarks/real_logs.py tests/data/ulog/*.ulg --export /tmp/csv --out docs/validation/real_logs_csv.json
 """
 
 from __future__ import annotations
@@ -190,14 +190,23 @@ def _floats_ok(x):
     return True
 
 
-def analyse(path, csv_dir=None):
+def analyse(path, csv_dir=None, export=None):
+    """One log: the independent estimates, the report and the checks. The run diagnosed is the .ulg
+    itself, or ``csv_dir/NAME.csv``, or (``export``: a folder) the log's CSV export as recorded,
+    written there by :func:`jaxdrift.io.export_recorded_csv`."""
     import jaxdrift
 
     d = read_ulog(path)
     t0 = time.perf_counter()
     cb = constant_bias(d["tg"], d["w"], d["tq"], d["q"])
     t_ind = time.perf_counter() - t0
-    run_path = Path(csv_dir) / (Path(path).stem + ".csv") if csv_dir else Path(path)
+    if export:
+        from jaxdrift.io import export_recorded_csv
+
+        run_path = Path(export) / (Path(path).stem + ".csv")
+        export_recorded_csv(str(path), str(run_path))
+    else:
+        run_path = Path(csv_dir) / (Path(path).stem + ".csv") if csv_dir else Path(path)
     t0 = time.perf_counter()
     rep = jaxdrift.run_attitude_diagnosis(str(run_path))
     t_diag = time.perf_counter() - t0
@@ -251,12 +260,14 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
     ap.add_argument("logs", nargs="+", help="ULog files (.ulg)")
-    ap.add_argument("--csv", metavar="DIR", help="diagnose DIR/NAME.csv (the logs' CSV exports) instead of the .ulg")
+    ap.add_argument("--csv", metavar="DIR", help="diagnose DIR/NAME.csv (CSV files made elsewhere) instead of the .ulg")
+    ap.add_argument("--export", metavar="DIR", help="diagnose the logs' CSV exports as recorded (jittered t, gaps, the "
+                    "reference on its own rows), written into DIR by jaxdrift.io.export_recorded_csv")
     ap.add_argument("--out", required=True, help="JSON results")
     a = ap.parse_args(argv)
     res = []
     for p in a.logs:
-        r = analyse(p, a.csv)
+        r = analyse(p, a.csv, a.export)
         res.append(r)
         print(f"{r['log']}: {r['hardware']}; checks {r['checks']}; attitude error {r['attitude_error_rms']['before']:.4g} -> "
               f"{r['attitude_error_rms']['after']:.4g} rad", flush=True)
