@@ -4,9 +4,13 @@
 
 1. :func:`gyro_noise_step`: white gyro noise from high-order differences, and the floors below which
    an effect is the file's discretisation;
-2. :func:`reference_step` (two or more reference rows): biases, scales and bias drift from the
-   reference attitude, the attitude error before and after the corrections;
-   or :func:`static_segment_step` (otherwise): biases from a segment standing still;
+2. :func:`reference_step` (two or more reference rows): where the reference is consistent with the
+   gyro (:mod:`._consistency`: ``reference_inconsistent`` spans are left out) and where it says the
+   body does not move (the gyro noise is an estimate there, an upper bound otherwise:
+   :func:`._realworld.noise_kind_step`), then biases, scales and bias drift from the reference
+   attitude (what the fit cannot determine goes into ``not_determined``), the attitude error before
+   and after the corrections; or :func:`static_segment_step` (otherwise): biases from a segment
+   standing still;
 3. :func:`jaxdrift.diagnosis.attitude._array.array_step` (with sensor positions): positions, gyro
    biases through the centripetal terms, accelerometer noise and rigidity;
 4. :func:`allan_step`: Allan deviation of the best error series;
