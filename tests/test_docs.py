@@ -1,4 +1,4 @@
-"""The README's commands run as written, and the numbers and claims the docs fixed in issue #14."""
+"""The README's commands run as written, and the numbers and claims the docs make."""
 
 from __future__ import annotations
 
