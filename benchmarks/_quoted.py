@@ -11,7 +11,8 @@ that name the committed JSON file it comes from, the value inside it and its for
   a key that holds dots, slashes or spaces goes in square brackets
   (``cases.[fixed/jaxdrift].path_steps_per_s``, ``by_threshold.[0.5].undisturbed``); ``*`` takes
   every element and ``|AGG`` reduces them (``rows.*.stabilised.*|maxdev1``: the largest
-  ``|ratio - 1|``; aggregates ``max min len sum median spread maxdev1 maxabs``);
+  ``|ratio - 1|``; aggregates ``max min len sum median spread maxdev1 maxabs inv sqrt``; ``a:b`` takes a slice of a list
+  like ``*``);
 - the format: a Python format spec (``.2f``, ``.3g``, ``d``, ``,d``, ``.0%``), optionally followed
   by ``*FACTOR`` to scale first (``.0f*100``: metres as centimetres; ``.2f*9.313225746154785e-10``:
   bytes as GiB). ``d`` rounds a float to the nearest integer. A string value is written as it is
@@ -106,6 +107,8 @@ AGGREGATES: dict[str, Callable[[list], Any]] = {
     "spread": lambda v: max(v) - min(v),  # max - min
     "maxdev1": lambda v: max(abs(x - 1.0) for x in v),  # largest |x - 1| of ratios
     "maxabs": lambda v: max(abs(x) for x in v),
+    "inv": lambda v: 1.0 / v[0] if len(v) == 1 else None,  # 1/x of one value (a ratio turned round)
+    "sqrt": lambda v: v[0] ** 0.5 if len(v) == 1 else None,  # standard deviation from a variance
 }
 
 
@@ -113,7 +116,7 @@ def lookup(obj: Any, key: str) -> Any:
     """The value at a dotted ``key`` inside a JSON object.
 
     ``a.b.0.[x/y]``: object keys and list indices; ``*`` takes every element of a list (or every
-    value of an object) and the rest of the key inside each, giving a list; ``key|AGG`` reduces
+    value of an object) and the rest of the key inside each, giving a list (``2:5``: a slice); ``key|AGG`` reduces
     that list by an aggregate of :data:`AGGREGATES` (``rows.*.stabilised.*|maxdev1``).
     """
     key, _, agg = key.partition("|")
@@ -138,7 +141,10 @@ def lookup(obj: Any, key: str) -> Any:
 
 def _walk(obj: Any, parts: list[str], key: str, starred: bool = False) -> Any:
     for i, part in enumerate(parts):
-        if part == "*":
+        if part == "*" or (isinstance(obj, list) and re.fullmatch(r"-?\d*:-?\d*", part)):
+            if part != "*":  # a slice "a:b" of a list, taken like '*'
+                lo, hi = (int(v) if v else None for v in part.split(":"))
+                obj = obj[lo:hi]
             items = obj if isinstance(obj, list) else list(obj.values()) if isinstance(obj, dict) else None
             if items is None:
                 raise QuoteError(f"key {key!r}: '*' inside a {type(obj).__name__}")
