@@ -12,7 +12,8 @@ that name the committed JSON file it comes from, the value inside it and its for
   (``cases.[fixed/jaxdrift].path_steps_per_s``, ``by_threshold.[0.5].undisturbed``); ``*`` takes
   every element and ``|AGG`` reduces them (``rows.*.stabilised.*|maxdev1``: the largest
   ``|ratio - 1|``; aggregates ``max min len sum median spread maxdev1 maxabs inv sqrt``; ``a:b`` takes a slice of a list
-  like ``*``);
+  like ``*``, and ``[?field=value]`` the elements whose ``field`` equals ``value``
+  (``rows.[?fs=200].stabilised.*|max``; also ``>=``, ``<=`` and several joined by ``&``));
 - the format: a Python format spec (``.2f``, ``.3g``, ``d``, ``,d``, ``.0%``), optionally followed
   by ``*FACTOR`` to scale first (``.0f*100``: metres as centimetres; ``.2f*9.313225746154785e-10``:
   bytes as GiB). ``d`` rounds a float to the nearest integer. A string value is written as it is
@@ -139,10 +140,23 @@ def lookup(obj: Any, key: str) -> Any:
     return value
 
 
+def _holds(obj: dict, cond: str) -> bool:
+    """``field=value`` or ``field>=value`` on one element (numbers compared as floats)."""
+    field, op, want = re.fullmatch(r"([^=<>]+)(>=|<=|=)(.*)", cond).groups()
+    value = obj.get(field)
+    try:
+        v, w = float(value), float(want)
+    except (TypeError, ValueError):
+        return op == "=" and str(value) == want
+    return v == w if op == "=" else v >= w if op == ">=" else v <= w
+
+
 def _walk(obj: Any, parts: list[str], key: str, starred: bool = False) -> Any:
     for i, part in enumerate(parts):
-        if part == "*" or (isinstance(obj, list) and re.fullmatch(r"-?\d*:-?\d*", part)):
-            if part != "*":  # a slice "a:b" of a list, taken like '*'
+        if part == "*" or (isinstance(obj, list) and (re.fullmatch(r"-?\d*:-?\d*", part) or part.startswith("?"))):
+            if part.startswith("?"):  # "[?field=value]": the elements whose field equals value, like '*'
+                obj = [o for o in obj if isinstance(o, dict) and all(_holds(o, c) for c in part[1:].split("&"))]
+            elif part != "*":  # a slice "a:b" of a list, taken like '*'
                 lo, hi = (int(v) if v else None for v in part.split(":"))
                 obj = obj[lo:hi]
             items = obj if isinstance(obj, list) else list(obj.values()) if isinstance(obj, dict) else None
