@@ -6,7 +6,8 @@ that name the committed JSON file it comes from, the value inside it and its for
     median <!-- q:docs/figures/paper/summary.json:headline.noisy.median:.2f -->7.15<!-- /q --> s
 
 - the file: a path from the repository root, a JSON file under ``benchmarks/results/``,
-  ``docs/validation/``, ``docs/figures/paper/`` or ``examples/`` (the committed example report);
+  ``docs/validation/``, ``docs/figures/`` (the summaries the commands write beside their figures)
+  or ``examples/`` (the committed example report);
 - the key: dot-separated object keys and list indices (``solver_comparison.1.noisy_drift_off_s.5``);
   a key that holds dots, slashes or spaces goes in square brackets
   (``cases.[fixed/jaxdrift].path_steps_per_s``, ``by_threshold.[0.5].undisturbed``); ``*`` takes
@@ -37,7 +38,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 ROOT = Path(__file__).resolve().parent.parent
-RESULT_DIRS = ("benchmarks/results/", "docs/validation/", "docs/figures/paper/", "examples/")
+RESULT_DIRS = ("benchmarks/results/", "docs/validation/", "docs/figures/", "examples/")
 
 #: one inline quoted number: file, key, format, the text between the markers
 INLINE = re.compile(
