@@ -12,9 +12,10 @@ that name the committed JSON file it comes from, the value inside it and its for
   a key that holds dots, slashes or spaces goes in square brackets
   (``cases.[fixed/jaxdrift].path_steps_per_s``, ``by_threshold.[0.5].undisturbed``); ``*`` takes
   every element and ``|AGG`` reduces them (``rows.*.stabilised.*|maxdev1``: the largest
-  ``|ratio - 1|``; aggregates ``max min len sum median spread maxdev1 maxabs inv sqrt``; ``a:b`` takes a slice of a list
+  ``|ratio - 1|``; aggregates ``max min len sum median spread maxdev1 maxabs inv sqrt ratio diff``; ``a:b`` takes a slice of a list
   like ``*``, and ``[?field=value]`` the elements whose ``field`` equals ``value``
-  (``rows.[?fs=200].stabilised.*|max``; also ``>=``, ``<=`` and several joined by ``&``));
+  (``rows.[?fs=200].stabilised.*|max``; also ``>=``, ``<=`` and several joined by ``&``);
+  ``[(a,b)]`` picks two keys for ``|ratio`` or ``|diff`` (``cases.[(diffrax,jaxdrift)].ns|ratio``));
 - the format: a Python format spec (``.2f``, ``.3g``, ``d``, ``,d``, ``.0%``), optionally followed
   by ``*FACTOR`` to scale first (``.0f*100``: metres as centimetres; ``.2f*9.313225746154785e-10``:
   bytes as GiB). ``d`` rounds a float to the nearest integer. A string value is written as it is
@@ -111,6 +112,8 @@ AGGREGATES: dict[str, Callable[[list], Any]] = {
     "maxabs": lambda v: max(abs(x) for x in v),
     "inv": lambda v: 1.0 / v[0] if len(v) == 1 else None,  # 1/x of one value (a ratio turned round)
     "sqrt": lambda v: v[0] ** 0.5 if len(v) == 1 else None,  # standard deviation from a variance
+    "ratio": lambda v: v[0] / v[1] if len(v) == 2 else None,  # of two values picked by [(a,b)]
+    "diff": lambda v: v[0] - v[1] if len(v) == 2 else None,
 }
 
 
@@ -154,8 +157,15 @@ def _holds(obj: dict, cond: str) -> bool:
 
 def _walk(obj: Any, parts: list[str], key: str, starred: bool = False) -> Any:
     for i, part in enumerate(parts):
-        if part == "*" or (isinstance(obj, list) and (re.fullmatch(r"-?\d*:-?\d*", part) or part.startswith("?"))):
-            if part.startswith("?"):  # "[?field=value]": the elements whose field equals value, like '*'
+        if part == "*" or (isinstance(obj, list) and (re.fullmatch(r"-?\d*:-?\d*", part) or part.startswith("?"))) \
+                or (isinstance(obj, dict) and part.startswith("(") and part.endswith(")")):
+            if part.startswith("("):  # "[(a,b)]": the values of keys a and b, in that order, like '*'
+                names = part[1:-1].split(",")
+                missing = [k for k in names if k not in obj]
+                if missing:
+                    raise QuoteError(f"key {key!r}: no {missing[0]!r}")
+                obj = [obj[k] for k in names]
+            elif part.startswith("?"):  # "[?field=value]": the elements whose field equals value, like '*'
                 obj = [o for o in obj if isinstance(o, dict) and all(_holds(o, c) for c in part[1:].split("&"))]
             elif part != "*":  # a slice "a:b" of a list, taken like '*'
                 lo, hi = (int(v) if v else None for v in part.split(":"))

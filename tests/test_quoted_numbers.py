@@ -39,7 +39,7 @@ def test_a_hand_edited_number_fails():
     assert _quoted.rewrite(bad, "x.md", ROOT) == text
 
 
-def test_every_quoted_number_in_the_readme_is_checked():
+def test_every_marker_parses():
     """Each inline marker in the docs parses: a malformed marker would be skipped silently."""
     for p in DOCS:
         text = p.read_text()
@@ -65,3 +65,21 @@ def test_keys():
         _quoted.lookup(obj, "a.5")
     with pytest.raises(_quoted.QuoteError, match="JSON file under"):
         _quoted.load(ROOT, "README.md")
+
+
+def test_key_selections_and_aggregates():
+    rows = {"rows": [{"fs": 200.0, "r": [1.02, 0.97]}, {"fs": 500.0, "r": [1.5, 1.1], "u": 9.0}, {"fs": 1000.0, "r": [3.0, 1.0]}],
+            "ns": {"a": {"w": 10.0}, "b": {"w": 40.0}}, "v": [4.0]}
+    assert _quoted.lookup(rows, "rows.*.r.*|len") == 6
+    assert _quoted.lookup(rows, "rows.*.r.*|max") == 3.0
+    assert _quoted.lookup(rows, "rows.[?fs=200].r.*|maxdev1") == pytest.approx(0.03)
+    assert _quoted.lookup(rows, "rows.[?fs>=500].r.*|min") == 1.0
+    assert _quoted.lookup(rows, "rows.[?fs>=500&fs<=500].r.*|min") == 1.1
+    assert _quoted.lookup(rows, "rows.0:2.r.0|sum") == pytest.approx(2.52)
+    assert _quoted.lookup(rows, "rows.*.u|len") == 1  # elements without the key are dropped under '*'
+    assert _quoted.lookup(rows, "ns.[(b,a)].w|ratio") == 4.0
+    assert _quoted.lookup(rows, "v.0|sqrt") == 2.0 and _quoted.lookup(rows, "v.0|inv") == 0.25
+    with pytest.raises(_quoted.QuoteError, match="unknown aggregate"):
+        _quoted.lookup(rows, "v.0|mean")
+    with pytest.raises(_quoted.QuoteError, match="no 'c'"):
+        _quoted.lookup(rows, "ns.[(a,c)].w|ratio")
