@@ -27,7 +27,7 @@ solver_comparison.md. Drift-off time: the first time |beta - beta_measured| exce
 --threshold-deg (default 1 deg). The headline drift-off statistics are taken where the
 integration has converged (fixed 1 ms steps, checked at 0.5 ms and with jnp.sin/jnp.cos in place
 of the polynomial sin/cos), with 95 % bootstrap intervals over the noise samples; the paper's
-rtol 1e-4, whose drift-off times depend on rounding, is reported beside them. The defaults take a few minutes on 2 CPU cores; --quick takes
+rtol 1e-4, whose drift-off times depend on rounding, is reported beside them. The defaults take about 7 minutes on 2 busy CPU cores; --quick takes
 about a minute; scale up with --samples, --models, --duration.
 
 exit codes: 0 done, 2 bad input or unwritable --out (nothing written), 130 interrupted
