@@ -3,7 +3,7 @@
 A number in the text sits between two HTML comments (invisible when the markdown is rendered)
 that name the committed JSON file it comes from, the value inside it and its format::
 
-    median <!-- q:docs/figures/paper/summary.json:headline.noisy.median:.2f -->7.15<!-- /q --> s
+    median <!-- q:docs/figures/paper/summary.json:headline.drift_off_beta_s.noisy.median:.2f -->7.00<!-- /q --> s
 
 - the file: a path from the repository root, a JSON file under ``benchmarks/results/``,
   ``docs/validation/``, ``docs/figures/`` (the summaries the commands write beside their figures)

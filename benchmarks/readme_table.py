@@ -1,7 +1,7 @@
 """Write every quoted number and table in README.md and docs/*.md from its committed result file.
 
 Numbers sit between markers that name their file, key and format (see ``benchmarks/_quoted.py``
-for the syntax), e.g. ``<!-- q:docs/figures/paper/summary.json:headline.noisy.median:.2f -->7.15<!-- /q -->``;
+for the syntax), e.g. ``<!-- q:docs/figures/paper/summary.json:headline.drift_off_beta_s.noisy.median:.2f -->7.00<!-- /q -->``;
 tables between ``<!-- NAME -->`` and ``<!-- /NAME -->`` for a renderer registered there (the
 README's throughput table: ``<!-- throughput-table -->``). Run after regenerating a result file::
 
