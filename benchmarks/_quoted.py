@@ -297,3 +297,36 @@ def throughput_table(root: Path) -> str:
                       + ", ".join(f"{m['mode']} mode {m['peak_rss_bytes'] / 2**30:.2f} GiB in {m['wall_s']:.0f} s"
                                   for m in mems) + "."]
     return "\n".join(lines)
+
+
+@block("real-logs-table")
+def _real_logs_table(root: Path) -> str:
+    """docs/real-data.md: one row per log of docs/validation/real_logs.json (benchmarks/real_logs.py)."""
+    r = json.loads((root / "docs/validation/real_logs.json").read_text())
+
+    def g(x):
+        return f"{x:.3g}"
+
+    rows = ["| log | hardware (`ver_hw`) | gyro / attitude time base | independent bias (SE) | clear | jaxdrift findings "
+            "| attitude error before -> after [rad] |", "|---|---|---|---|---|---|---|"]
+    for L in r["logs"]:
+        i, gy, at = L["independent"], L["gyro"], L["attitude"]
+        tb = (f"{gy['rate_hz']:.0f} Hz, jitter {100 * gy['jitter_std']:.1f} % (std), {gy['gaps']} gaps up to "
+              f"{1000 * gy['longest_gap_s']:.0f} ms / {at['rate_hz']:.0f} Hz")
+        ind = ", ".join(f"{g(b)} ({g(s)})" for b, s in zip(i["bias"], i["se"]))
+        clear = " ".join(a for a, c in zip("xyz", i["clear"]) if c) or "none"
+        fs = []
+        for f in L["findings"]:
+            if f["cause"] == "reference_inconsistent":
+                fs.append(f"`reference_inconsistent` {f['axis']} {g(f['span_s'][0])}-{g(f['span_s'][1])} s ({g(f['estimate'])} rad/s)")
+            elif f["cause"] == "gyro_noise":
+                fs.append(f"`gyro_noise` {g(f['estimate'])} ({f['estimate_kind']})")
+            else:
+                fs.append(f"`{f['cause']}` {f['channel']} {g(f['estimate'])} [{g(f['interval'][0])}, {g(f['interval'][1])}]")
+        nd = ", ".join(f"{d['cause'].replace('gyro_', '')} {d['channel']}" for d in L["not_determined"])
+        if nd:
+            fs.append("not determined: " + nd)
+        e, gn = L["attitude_error_rms"], L["report_gain"]
+        rows.append(f"| {L['log']} ({gy['duration_s']:.1f} s) | {L['hardware']} | {tb} | {ind} | {clear} | {'; '.join(fs)} "
+                    f"| {g(e['before'])} -> {g(e['after'])} (report: {g(gn['before'])} -> {g(gn['after'])}) |")
+    return "\n".join(rows)
