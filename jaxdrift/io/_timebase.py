@@ -34,7 +34,7 @@ import numpy as np
 
 __all__ = ["GAP_FACTOR", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
            "sample_segments", "resample", "place_nearest", "row_segments", "build_time_base",
-           "uniform_time_base", "segment_arrays"]
+           "uniform_time_base", "segment_arrays", "run_block"]
 
 #: a step longer than GAP_FACTOR x the nominal step is a gap (a sample or more is missing)
 GAP_FACTOR = 1.5
@@ -207,3 +207,12 @@ def segment_arrays(run: dict, names=("t", "w", "q_ref", "acc")):
         d["dt"] = run["dt"]
         out.append(d)
     return out
+
+
+def run_block(tb: dict | None) -> dict | None:
+    """The time base as a report's ``run`` block shows it (JSON-ready; None without a record)."""
+    if not tb:
+        return None
+    keys = ("fs", "nominal_dt", "jitter_std_rel", "jitter_max_rel", "gap_factor", "gaps", "segments",
+            "analysed_segment", "resampled", "method", "filtered", "noise_variance_factor")
+    return {k: tb[k] for k in keys if k in tb}
