@@ -246,7 +246,7 @@ def test_real_ulog_and_its_csv_export_read_the_same(tmp_path, capsys):
     assert head[1].startswith("0,") and sum(1 for ln in head if not ln.endswith(",,,")) > 1000
     again = read_attitude_run(str(out))
     assert again["time_base"]["segments"] == tb["segments"]
-    np.testing.assert_allclose(again["t"], run["t"] - run["t"][0], atol=1e-9)
+    np.testing.assert_allclose(again["t"] - again["t"][0], run["t"] - run["t"][0], atol=1e-9)
     np.testing.assert_allclose(again["w"], run["w"], atol=1e-6, equal_nan=True)
     assert len(again["q_ref_t"]) == len(run["q_ref_t"])
     np.testing.assert_allclose(again["q_ref_q"], run["q_ref_q"], atol=1e-7)

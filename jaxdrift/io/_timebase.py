@@ -17,7 +17,8 @@ policy (docs/measured-data.md, "Time base"):
    forward and backward (zero phase), cut off at :data:`FILTER_CUTOFF` times the grid's Nyquist
    frequency, per segment, on the channel's own samples taken as uniform at its nominal rate.
 5. **Segments of the run**: the grid rows where every channel has a value, in runs of consecutive
-   rows; a run shorter than 2 rows is dropped (and reported).
+   rows; a run shorter than 2 rows is dropped (and reported). The grid starts at the first row of
+   the first segment and ends with the last row of the last one.
 6. **References** (an attitude run's quaternion) are not resampled: their samples are returned at
    their own times; for callers that read them per grid row they are also placed on the grid row
    nearest each sample (within half a step, inside a segment), NaN elsewhere.
@@ -170,6 +171,12 @@ def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
     kept, dropped = row_segments(valid)
     for a, b in dropped:
         valid[a:b] = False
+    # the grid spans the kept segments: rows before the first and after the last are cut
+    lo, hi = (kept[0][0], kept[-1][1]) if kept else (0, 0)
+    grid, valid = grid[lo:hi], valid[lo:hi]
+    data = {name: v[lo:hi] for name, v in data.items()}
+    kept = [(a - lo, b - lo) for a, b in kept]
+    dropped = [(a - lo, b - lo) for a, b in dropped if lo <= a and b <= hi]
     refs = {name: place_nearest(grid, valid, tr, vr, dt) for name, (tr, vr) in (references or {}).items()}
     fa = np.asarray(fracs)
     tb = {"nominal_dt": dt, "fs": 1.0 / dt, "jitter_std_rel": st_p["jitter_std_rel"],
