@@ -343,3 +343,41 @@ def test_ros_bag_imu(tmp_path, ros, with_q):
         assert run["q_ref"] is None and run["q_ref_t"] is None
     rows = cli.main(["topics", str(path)])
     assert rows == 0
+
+
+def test_parquet_with_jittered_time_reads_as_the_csv(tmp_path):
+    import pyarrow as pa
+    import pyarrow.parquet as pq
+
+    rng = np.random.default_rng(4029)
+    t = _jittered_t(900, 0.005, rng, gaps=[(500, 3)])
+    w = _w(t)
+    _write_csv(tmp_path / "j.csv", t, w)
+    pq.write_table(pa.table({"t": t, "wx": w[:, 0], "wy": w[:, 1], "wz": w[:, 2]}), tmp_path / "j.parquet")
+    a, b = read_attitude_run(str(tmp_path / "j.csv")), read_attitude_run(str(tmp_path / "j.parquet"))
+    assert a["time_base"]["segments"] == b["time_base"]["segments"] and len(b["time_base"]["gaps"]) == 1
+    np.testing.assert_allclose(b["w"], a["w"], atol=1e-11, equal_nan=True)
+
+
+def test_mf4_attitude_reference_on_its_own_times(tmp_path):
+    pytest.importorskip("asammdf")
+    from asammdf import MDF, Signal
+
+    rng = np.random.default_rng(4030)
+    t = _jittered_t(1500, 0.004, rng, jitter=0.02, gaps=[(800, 5)])
+    w = _w(t)
+    tq = np.round(np.arange(t[0] + 0.001, t[-1], 0.02), 9)  # a 50 Hz reference
+    q = _quat(tq)
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(w[:, j], t, name=f"gyro_{a}", unit="rad/s") for j, a in enumerate("xyz")])
+    mdf.append([Signal(q[:, j], tq, name=f"att_{a}") for j, a in enumerate("wxyz")])
+    mdf.save(tmp_path / "att.mf4", overwrite=True)
+    mdf.close()
+    m = "wx=gyro_x,wy=gyro_y,wz=gyro_z,qw=att_w,qx=att_x,qy=att_y,qz=att_z"
+    run = read_attitude_run(str(tmp_path / "att.mf4"), map=m)
+    assert len(run["time_base"]["segments"]) == 2
+    np.testing.assert_allclose(run["q_ref_t"], tq, atol=1e-12)
+    np.testing.assert_allclose(run["q_ref_q"], q, atol=1e-12)  # never interpolated
+    ok = np.isfinite(run["w"][:, 0])
+    bound = (np.diff(t).max() ** 2 / 8) * 0.3 * (2 * np.pi * F) ** 2 + 1e-12
+    assert np.max(np.abs(run["w"][ok] - _w(run["t"][ok]))) <= bound
