@@ -381,3 +381,27 @@ def test_mf4_attitude_reference_on_its_own_times(tmp_path):
     ok = np.isfinite(run["w"][:, 0])
     bound = (np.diff(t).max() ** 2 / 8) * 0.3 * (2 * np.pi * F) ** 2 + 1e-12
     assert np.max(np.abs(run["w"][ok] - _w(run["t"][ok]))) <= bound
+
+
+def test_ulog_fast_path_reads_what_pyulog_reads(tmp_path, monkeypatch):
+    """The fast path (headers walked, payloads read by numpy) gives pyulog's arrays bit for bit;
+    a log it does not take (appended data, corruption) goes to pyulog with the same result."""
+    pyulog = pytest.importorskip("pyulog")
+    from jaxdrift.io import _ulog_fast
+
+    topics = ["sensor_combined", "vehicle_attitude", "sensor_gyro"]
+    fast = _ulog_fast.read_topics(SMALL, topics, pyulog.ULog)
+    assert fast is not None
+    ref = {(d.name, d.multi_id): d.data for d in pyulog.ULog(str(SMALL), topics).data_list}
+    got = {(d.name, d.multi_id): d.data for d in fast[0]}
+    assert set(got) == set(ref) and len(got) == 5  # sensor_gyro has 3 instances
+    for key, data in ref.items():
+        assert set(got[key]) == set(data)
+        for f, v in data.items():
+            np.testing.assert_array_equal(got[key][f], v)
+    a = read_attitude_run(str(SMALL))
+    monkeypatch.setattr(_ulog_fast, "read_topics", lambda *args: None)
+    b = read_attitude_run(str(SMALL))
+    np.testing.assert_array_equal(a["w"], b["w"])
+    np.testing.assert_array_equal(a["q_ref_q"], b["q_ref_q"])
+    assert a["info"]["log"] == b["info"]["log"]

@@ -126,8 +126,8 @@ def _read_ulog(path, want: list[str], optional=()) -> tuple[dict, list[str], dic
     fname = _label(path)
     parsed = [parse_channel(w, "ulog") for w in want]
     topics = sorted({p[0] for p in parsed})
-    ulog = _open_ulog(path, topics)
-    sets = {(d.name, d.multi_id): d for d in ulog.data_list}
+    data_list, info, dropouts, formats = _ulog_data(path, topics)
+    sets = {(d.name, d.multi_id): d for d in data_list}
     out, notes = {}, []
     for w, (topic, inst, field) in zip(want, parsed):
         d = sets.get((topic, inst))
@@ -142,7 +142,7 @@ def _read_ulog(path, want: list[str], optional=()) -> tuple[dict, list[str], dic
                                  f"{', '.join(map(str, have))}; `jaxdrift topics {fname}` lists them)")
             import difflib
 
-            hint = difflib.get_close_matches(topic, list(ulog.message_formats), n=1, cutoff=0.6)
+            hint = difflib.get_close_matches(topic, list(formats), n=1, cutoff=0.6)
             did = f"; did you mean {hint[0]!r}?" if hint else ""
             raise InputError(f"{fname}: no topic {topic!r} logged{did} (`jaxdrift topics {fname}` lists them)")
         if field not in d.data:
@@ -157,12 +157,27 @@ def _read_ulog(path, want: list[str], optional=()) -> tuple[dict, list[str], dic
                                    [np.asarray(d.data[field], dtype=np.float64)])
         notes += [n for n in nt if n not in notes]
         out[w] = (t, v)
-    meta = {k: ulog.msg_info_dict.get(k) for k in ("ver_hw", "sys_name", "ver_sw", "ver_sw_release")
-            if k in ulog.msg_info_dict}
-    if ulog.dropouts:
-        meta["dropouts"] = len(ulog.dropouts)
-        meta["dropout_total_s"] = float(sum(d.duration for d in ulog.dropouts)) * 1e-3
+    meta = {k: info.get(k) for k in ("ver_hw", "sys_name", "ver_sw", "ver_sw_release") if k in info}
+    if dropouts:
+        meta["dropouts"] = len(dropouts)
+        meta["dropout_total_s"] = float(sum(dropouts)) * 1e-3
     return out, notes, meta
+
+
+def _ulog_data(path, topics):
+    """(data sets of ``topics``, info dict, dropout durations [ms], message formats): the fast
+    path of :mod:`._ulog_fast` where it reads the log exactly as pyulog would, else pyulog."""
+    from ._ulog_fast import read_topics
+
+    ULog = _pyulog()
+    try:
+        fast = read_topics(path, topics, ULog)
+    except Exception as e:  # noqa: BLE001 - pyulog raises several types for a bad file
+        raise InputError(f"{_label(path)}: not a readable ULog file ({e})") from None
+    if fast is not None:
+        return fast
+    ulog = _open_ulog(path, topics)
+    return ulog.data_list, ulog.msg_info_dict, [d.duration for d in ulog.dropouts], ulog.message_formats
 
 
 def _ulog_topics(path) -> list[dict]:
