@@ -337,3 +337,14 @@ def test_cli_reading_options_reach_the_reader(tmp_path, capsys, real_cols, monke
     reading = json.loads(report.read_text())["provenance"]["reading"]
     assert reading["format"] == "mf4" and reading["time_base"]["channels"]["beta"]["fs"] == pytest.approx(100.0)
     np.testing.assert_allclose(seen[-1]["f2"], real_cols["f2"][:seen[-1].n], rtol=1e-10)
+
+
+def test_mf4_slower_motion_channel_kept_at_its_own_times(tmp_path, real_cols):
+    path = tmp_path / "log.mf4"
+    _write_mf4(path, real_cols)
+    r = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch")
+    tb_, vb = r.references["beta"]
+    tb_ref = np.arange(real_cols["t"][0], real_cols["t"][-1] + 1e-12, 1 / 100.0)
+    np.testing.assert_allclose(tb_, tb_ref[(tb_ref >= r.t[0]) & (tb_ref <= r.t[-1])], atol=1e-12)
+    np.testing.assert_allclose(vb, np.interp(tb_, real_cols["t"], real_cols["beta"]), atol=1e-12)
+    assert "f2" not in r.references  # as fast as the grid: on the grid only

@@ -405,3 +405,35 @@ def test_ulog_fast_path_reads_what_pyulog_reads(tmp_path, monkeypatch):
     np.testing.assert_array_equal(a["w"], b["w"])
     np.testing.assert_array_equal(a["q_ref_q"], b["q_ref_q"])
     assert a["info"]["log"] == b["info"]["log"]
+
+
+def test_ulog_fs_makes_a_coarser_grid_with_the_filter_first(tmp_path):
+    from scipy.signal import butter, sosfiltfilt
+
+    path = tmp_path / "syn.ulg"
+    t, w, _, _ = _synthetic_ulog(path, gaps=())
+    run = read_attitude_run(str(path), fs=100.0)
+    tb = run["time_base"]
+    assert tb["fs"] == 100.0 and tb["filtered"] == ["wx", "wy", "wz"] and tb["primary_fs"] > 240
+    fs_c = 1.0 / np.median(np.diff(t))
+    sos = butter(4, 0.8 * 50.0, fs=fs_c, output="sos")
+    ref = np.interp(run["t"], t, sosfiltfilt(sos, w[:, 0].astype(np.float32).astype(float)))
+    np.testing.assert_allclose(run["w"][:, 0], ref, atol=1e-9)
+
+
+def test_attitude_report_run_block_shows_the_time_base(tmp_path):
+    rng = np.random.default_rng(4031)
+    t = _jittered_t(3000, 0.005, rng, jitter=0.02)
+    w = _w(t) + rng.normal(0, 1e-3, (len(t), 3))
+    q = _quat(t)
+    path = tmp_path / "jit.csv"
+    _write_csv(path, t, w, q, np.where(np.arange(len(t)) % 5 == 0, np.arange(len(t)), -1))
+    out = tmp_path / "r.json"
+    assert cli.main(["-q", "diagnose", str(path), "--json", str(out)]) == 0
+    import json
+
+    rep = json.loads(out.read_text())
+    tb = rep["run"]["time_base"]
+    assert tb["resampled"] is True and tb["method"] == "linear" and tb["gaps"] == []
+    assert tb["jitter_max_rel"] == pytest.approx(np.max(np.abs(np.diff(t) / np.median(np.diff(t)) - 1)), rel=1e-6)
+    assert rep["provenance"]["reading"]["time_base"]["reference"]["samples"] == 600

@@ -68,6 +68,12 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
         tb["reference"] = {"samples": int(len(tq)), "on_grid_rows": int(np.isfinite(placed["q"][:, 0]).sum()),
                            "fs": float(1.0 / np.median(np.diff(tq))) if len(tq) > 1 else 0.0}
     if kind != "attitude":
+        # a measured motion channel slower than the grid (a pitch from another logger): on the
+        # grid by linear interpolation (the vehicle diagnosis reads it per row), and its samples
+        # at their own times in the references
+        for c, (t, v) in streams.items():
+            if c != primary and tb["channels"][c]["fs"] * 1.05 < tb["fs"]:
+                refs[c] = (t, v)
         lengths = [b - a for a, b in tb["segments"]]
         k = int(np.argmax(lengths))
         i0, i1 = tb["segments"][k]
@@ -78,6 +84,9 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
                          f"are listed in the report's time base")
         grid = grid[i0:i1]
         on_grid = {c: v[i0:i1] for c, v in on_grid.items()}
+        for c, (t, v) in list(refs.items()):
+            m = (t >= grid[0]) & (t <= grid[-1])
+            refs[c] = (t[m], v[m])
     return grid, on_grid, refs, tb, notes
 
 
