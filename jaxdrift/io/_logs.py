@@ -181,9 +181,9 @@ def _ulog_data(path, topics):
 
 
 def _ulog_topics(path) -> list[dict]:
-    ulog = _open_ulog(path)
+    data_list = _ulog_data(path, None)[0]
     rows = []
-    for d in sorted(ulog.data_list, key=lambda d: (d.name, d.multi_id)):
+    for d in sorted(data_list, key=lambda d: (d.name, d.multi_id)):
         t = _ulog_times(d)
         t = t[t > 0]
         dur = float(t[-1] - t[0]) if t.size > 1 else 0.0

@@ -40,7 +40,7 @@ def _walk(buf: bytes, start: int, wanted_names, formats, ULog):
             continue
         if typ == _A:
             name = buf[pos + 6: nxt].decode("utf-8", "replace").rstrip("\x00")
-            if name in wanted_names:
+            if wanted_names is None or name in wanted_names:
                 sub = ULog._MessageAddLogged(buf[pos + 3: nxt], None, formats)
                 subs[sub.msg_id] = sub
                 pos_of[sub.msg_id] = []
@@ -53,16 +53,16 @@ def _walk(buf: bytes, start: int, wanted_names, formats, ULog):
 
 
 def read_topics(path, topics, ULog):
-    """The topics' data as pyulog's ``data_list`` would hold them, plus the log's info and
-    dropouts: ``(data_list, msg_info_dict, dropouts_ms, message_formats)``; None where only
-    pyulog can read the log exactly."""
+    """The topics' data (``topics`` None: every topic) as pyulog's ``data_list`` would hold them,
+    plus the log's info and dropouts: ``(data_list, msg_info_dict, dropouts_ms,
+    message_formats)``; None where only pyulog can read the log exactly."""
     head = ULog(str(path), message_name_filter_list=[], parse_header_only=True)
     if head.has_data_appended or head.file_corruption:
         return None
     with open(path, "rb") as fh:
         buf = fh.read()
     try:
-        walked = _walk(buf, 16, set(topics), head.message_formats, ULog)
+        walked = _walk(buf, 16, None if topics is None else set(topics), head.message_formats, ULog)
     except (KeyError, IndexError, ValueError):  # a format pyulog would have to judge
         return None
     if walked is None:
@@ -72,6 +72,8 @@ def read_topics(path, topics, ULog):
     out = []
     for msg_id, sub in subs.items():
         pos = np.asarray(pos_of[msg_id], dtype=np.int64)
+        if not pos.size:
+            continue  # pyulog lists only topics with data
         n_item = sub.dtype.itemsize
         sizes = raw[pos].astype(np.int64) | (raw[pos + 1].astype(np.int64) << 8)
         if np.any(sizes - 2 < n_item) or np.any(sizes - 2 > sub.max_data_size):
