@@ -194,10 +194,10 @@ def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
 
 def uniform_time_base(t: np.ndarray) -> dict:
     """The record of a run already on a uniform grid (nothing resampled): one segment."""
-    st = step_stats(t) if len(t) > 1 else {"nominal_dt": 0.0, "jitter_std_rel": 0.0, "jitter_max_rel": 0.0}
     dt = float((t[-1] - t[0]) / (len(t) - 1)) if len(t) > 1 else 0.0
-    return {"nominal_dt": dt, "fs": 1.0 / dt if dt else 0.0, "jitter_std_rel": st["jitter_std_rel"],
-            "jitter_max_rel": st["jitter_max_rel"], "gap_factor": GAP_FACTOR, "gaps": [],
+    dev = (np.diff(t) - dt) / dt if dt else np.zeros(0)
+    return {"nominal_dt": dt, "fs": 1.0 / dt if dt else 0.0, "jitter_std_rel": float(np.std(dev)) if dev.size else 0.0,
+            "jitter_max_rel": float(np.max(np.abs(dev))) if dev.size else 0.0, "gap_factor": GAP_FACTOR, "gaps": [],
             "segments": [[0, int(len(t))]], "dropped_segments": [], "resampled": False, "method": None,
             "filtered": [], "noise_variance_factor": 1.0}
 
