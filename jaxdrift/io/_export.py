@@ -78,6 +78,10 @@ def export_recorded_csv(path, out, map=None) -> dict:  # noqa: A002
         tq = series[mapping["qw"]][0]
         rows, src = nearest_rows(tw, tq)
         ref_rows = int(len(rows))
+        if ref_rows < len(tq):
+            notes.append(f"{path}: {len(tq) - ref_rows} of {len(tq)} reference samples have no rate row of "
+                         f"their own (outside the rates' span, or sharing the nearest row with a nearer "
+                         f"sample, as in a gap of the rates) and are not in the CSV")
         for c in QUAT:
             v = np.full(len(tw), np.nan)
             v[rows] = series[mapping[c]][1][src]
