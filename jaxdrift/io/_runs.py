@@ -310,11 +310,13 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
         for c, v in data.items():
             if c not in ATTITUDE_OPTIONAL:
                 valid &= np.isfinite(v)
-        rows = np.flatnonzero(valid)
+        rows = np.flatnonzero(valid) if not valid.all() else None  # (no copy of a complete run)
+        t_ok, data_ok = (t, data) if rows is None else (t[rows], {c: v[rows] for c, v in data.items()})
         model_label = DEFAULT_MODEL_LABEL if model is None else "the given model"
         problems += plausibility_problems(
-            kind, t[rows], {c: v[rows] for c, v in data.items()},
-            where=lambda i, c=None: where(int(rows[i]), c), name_of=lambda c: file_of.get(c, c),
+            kind, t_ok, data_ok,
+            where=where if rows is None else (lambda i, c=None: where(int(rows[i]), c)),
+            name_of=lambda c: file_of.get(c, c),
             model=dict(DEFAULT_MODEL if model is None else model), model_label=model_label,
             quantity_of=quantity_of)
     if problems and not force:
