@@ -23,7 +23,7 @@ from ._options import parse_map, parse_units, quantity_of, UNITS
 from ._plausible import plausibility_problems
 from ._logs import LOG_FORMATS
 from ._runs_time import REFERENCE_COLUMNS, _reference, apply_policy
-from ._table import Columns, detect_format, file_label, read_columns, read_header_any
+from ._table import Columns, _open_check, detect_format, file_label, read_columns, read_header_any
 from ._timebase import uniform_time_base
 
 __all__ = ["VehicleRun", "AttitudeRun", "KINDS", "load_run", "VEHICLE_REQUIRED", "VEHICLE_OPTIONAL",
@@ -257,6 +257,7 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     known_names = tuple(req) + tuple(opt)
     notes, optional = [], ()
     if fmt in LOG_FORMATS:
+        _open_check(path)
         map, header, notes, optional = _log_mapping(path, kind, map, known_names)  # noqa: A001
     else:
         header = read_header_any(path)

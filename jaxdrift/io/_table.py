@@ -85,7 +85,7 @@ def _open_check(path):
     if not os.path.exists(path):
         raise InputError(f"{path}: file not found")
     if os.path.isdir(path) and detect_format(path) != "bag":
-        raise InputError(f"{path}: is a directory, expected a run file (CSV, Parquet or MF4)")
+        raise InputError(f"{path}: is a directory, expected a run file (CSV, Parquet, MF4, ULog, ROS bag) or a ROS 2 bag folder (with metadata.yaml)")
     if not os.access(path, os.R_OK):
         raise InputError(f"{path}: cannot read (permission denied)")
 
