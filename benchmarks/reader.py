@@ -10,13 +10,15 @@ same for a Parquet copy. A benchmark, not a test: timings never enter the test s
 
     python benchmarks/reader.py [--rows 5000000] [--repeat 3] [--parquet] [--out benchmarks/results]
     python benchmarks/reader.py --ulog SRC.ulg [--minutes 30] [--repeat 3]
+    python benchmarks/reader.py --bag [--minutes 5] [--repeat 3]
 
 ``--ulog``: a real log (the pyulog project's ``test/sample.ulg``, 69 s from an AUAV-X2.1 flight
 controller) is repeated end to end, every message of every topic with its timestamps shifted,
 into a log of ``--minutes`` (pyulog then reads it as one log); the read is
 ``jaxdrift.io.read_attitude_run`` (the default topics, the full time-base policy), and the same
 for the log's CSV export as recorded (``jaxdrift topics --export-csv``). Writes
-``reader-ulog.json``.
+``reader-ulog.json``. ``--bag``: a ROS 2 bag of ``--minutes`` of sensor_msgs/Imu at 200 Hz, written
+by rosbags and read the same way (``reader-bag.json``).
 """
 
 from __future__ import annotations
@@ -184,6 +186,59 @@ def ulog_benchmark(args) -> None:
           f"{max(c['peak_rss_mib']):.0f} MiB; load average {load0:.1f}")
 
 
+def write_imu_bag(path: str, minutes: float, rate: float = 200.0) -> int:
+    """A ROS 2 bag of ``minutes`` of sensor_msgs/Imu at ``rate`` (1 % jitter, orientation filled)."""
+    import numpy as np
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    T = store.types
+    n = int(minutes * 60 * rate)
+    rng = np.random.default_rng(0)
+    t = 1000.0 + np.cumsum(np.full(n, 1.0 / rate) * (1 + 0.01 * rng.uniform(-1, 1, n)))
+    w = 0.1 * np.sin(np.outer(t, [1.0, 1.3, 0.7]))
+    zeros = np.zeros(9)
+    with Writer(path, version=9) as wr:
+        c = wr.add_connection("/imu/data", "sensor_msgs/msg/Imu", typestore=store)
+        for i in range(n):
+            sec = int(t[i])
+            msg = T["sensor_msgs/msg/Imu"](
+                header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+                    sec=sec, nanosec=int((t[i] - sec) * 1e9)), frame_id="imu"),
+                orientation=T["geometry_msgs/msg/Quaternion"](w=1.0, x=0.0, y=0.0, z=0.0),
+                orientation_covariance=zeros,
+                angular_velocity=T["geometry_msgs/msg/Vector3"](x=w[i, 0], y=w[i, 1], z=w[i, 2]),
+                angular_velocity_covariance=zeros,
+                linear_acceleration=T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=9.81),
+                linear_acceleration_covariance=zeros)
+            wr.write(c, int(t[i] * 1e9), store.serialize_cdr(msg, "sensor_msgs/msg/Imu"))
+    return n
+
+
+def bag_benchmark(args) -> None:
+    import importlib.metadata as md
+
+    with tempfile.TemporaryDirectory() as d:
+        path = os.path.join(d, "imu_bag")
+        n = write_imu_bag(path, args.minutes)
+        load0 = os.getloadavg()[0]
+        runs = [_ulog_child(path) for _ in range(args.repeat)]
+    result = {"benchmark": "reader-bag", "messages": n, "minutes": args.minutes, "load_average_at_start": load0,
+              "read_s": [r["read_s"] for r in runs], "peak_rss_mib": [r["peak_rss_mib"] for r in runs],
+              "messages_per_s": n / min(r["read_s"] for r in runs),
+              "command": "python benchmarks/reader.py " + " ".join(sys.argv[1:]),
+              "machine": {"python": platform.python_version(), "platform": platform.platform(),
+                          "cpu_count": os.cpu_count()},
+              "versions": {p: md.version(p) for p in ("numpy", "scipy", "rosbags")}}
+    os.makedirs(args.out, exist_ok=True)
+    with open(os.path.join(args.out, "reader-bag.json"), "w") as fh:
+        json.dump(result, fh, indent=1)
+    print(f"ROS 2 bag, {n} Imu messages ({args.minutes:g} min at 200 Hz): read in {min(result['read_s']):.2f} s "
+          f"({result['messages_per_s']:.0f} messages/s), peak RSS {max(result['peak_rss_mib']):.0f} MiB; "
+          f"load average {load0:.1f}")
+
+
 def _write_run(path: str, rows: int) -> None:
     import numpy as np
     import pyarrow as pa
@@ -223,10 +278,14 @@ def main() -> None:
     ap.add_argument("--parquet", action="store_true", help="also time a Parquet copy")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results"))
     ap.add_argument("--ulog", metavar="SRC.ulg", help="time a long ULog made from this real log instead")
-    ap.add_argument("--minutes", type=float, default=30.0, help="with --ulog: the length of the log made")
+    ap.add_argument("--minutes", type=float, default=30.0, help="with --ulog or --bag: the length of the log made")
+    ap.add_argument("--bag", action="store_true", help="time a ROS 2 bag of sensor_msgs/Imu at 200 Hz instead")
     args = ap.parse_args()
     if args.ulog:
         ulog_benchmark(args)
+        return
+    if args.bag:
+        bag_benchmark(args)
         return
 
     with tempfile.TemporaryDirectory() as d:

@@ -218,17 +218,26 @@ def _bag_reader(path):
     return r
 
 
-def _get(msg, field: str):
-    v = msg
-    for part in field.split("."):
-        idx = None
-        if part.endswith("]") and "[" in part:
-            part, _, i = part[:-1].partition("[")
-            idx = int(i)
-        v = getattr(v, part)
-        if idx is not None:
-            v = v[idx]
-    return float(v)
+def _getter(field: str):
+    """A fast accessor of a dotted field path (``angular_velocity.x``, ``covariance[0]``)."""
+    from operator import attrgetter
+
+    if "[" not in field:
+        return attrgetter(field)
+
+    def get(msg):
+        v = msg
+        for part in field.split("."):
+            idx = None
+            if part.endswith("]") and "[" in part:
+                part, _, i = part[:-1].partition("[")
+                idx = int(i)
+            v = getattr(v, part)
+            if idx is not None:
+                v = v[idx]
+        return v
+
+    return get
 
 
 def _stamp(msg, recorded_ns: int) -> float:
@@ -250,16 +259,29 @@ def _bag_series(reader, topic, fields, fname):
         hint = difflib.get_close_matches(topic, topics, n=1, cutoff=0.5)
         did = f"; did you mean {hint[0]!r}?" if hint else ""
         raise InputError(f"{fname}: no topic {topic!r} in the bag{did} (topics: {', '.join(topics)})")
-    t, vals = [], [[] for _ in fields]
+    getters = [_getter(f) for f in fields]
+    t, rows = [], []
     for conn, ts, raw in reader.messages(connections=conns):
         msg = reader.deserialize(raw, conn.msgtype)
         t.append(_stamp(msg, ts))
-        for j, f in enumerate(fields):
-            try:
-                vals[j].append(_get(msg, f))
-            except (AttributeError, IndexError, ValueError, TypeError):
-                raise InputError(f"{fname}: topic {topic} ({conn.msgtype}) has no numeric field {f!r}") from None
-    return np.asarray(t, dtype=np.float64), [np.asarray(v, dtype=np.float64) for v in vals]
+        try:
+            rows.append([g(msg) for g in getters])
+        except (AttributeError, IndexError, ValueError, TypeError):
+            bad = next(f for f, g in zip(fields, getters) if not _has(g, msg))
+            raise InputError(f"{fname}: topic {topic} ({conn.msgtype}) has no field {bad!r}") from None
+    try:
+        vals = np.asarray(rows, dtype=np.float64).reshape(len(rows), len(fields))
+    except (TypeError, ValueError):
+        raise InputError(f"{fname}: topic {topic}: the fields {', '.join(fields)} are not all numbers") from None
+    return np.asarray(t, dtype=np.float64), [vals[:, j] for j in range(len(fields))]
+
+
+def _has(getter, msg) -> bool:
+    try:
+        getter(msg)
+    except (AttributeError, IndexError, ValueError, TypeError):
+        return False
+    return True
 
 
 def _read_bag(path, want: list[str]) -> tuple[dict, list[str], dict]:
@@ -325,7 +347,7 @@ def _bag_topics(path) -> list[dict]:
     return rows
 
 
-def _bag_imu_default(path) -> dict:
+def _bag_imu_default(path) -> tuple[dict, str, int]:
     """The contract's columns from the bag's Imu topic (the one with most messages); the
     orientation only where it is filled (covariance[0] != -1 and not all zero)."""
     fname = _label(path)

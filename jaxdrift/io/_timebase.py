@@ -82,22 +82,22 @@ def resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, *, fs_grid: float |
 
     Returns (values on the grid, fractions ``a`` of the interpolated rows, stats of ``t``, filtered)."""
     st = step_stats(t)
-    out = np.full(len(grid), np.nan)
-    fracs = []
     filtered = bool(fs_grid and st["fs"] > FILTER_RATIO * fs_grid)
-    for a, b in sample_segments(len(t), st["gap_steps"]):
-        ts, vs = t[a:b], v[a:b]
-        i0, i1 = int(np.searchsorted(grid, ts[0], side="left")), int(np.searchsorted(grid, ts[-1], side="right"))
-        if i1 <= i0:
-            continue
-        if filtered and b - a > 1:
-            vs = _lowpass(vs, st["fs"], fs_grid)
-        g = grid[i0:i1]
-        out[i0:i1] = np.interp(g, ts, vs)
-        if b - a > 1:
-            j = np.clip(np.searchsorted(ts, g, side="right"), 1, b - a - 1)
-            fracs.append((g - ts[j - 1]) / (ts[j] - ts[j - 1]))
-    frac = np.concatenate(fracs) if fracs else np.zeros(0)
+    if filtered:
+        v = np.array(v, dtype=np.float64)
+        for a, b in sample_segments(len(t), st["gap_steps"]):
+            if b - a > 1:
+                v[a:b] = _lowpass(v[a:b], st["fs"], fs_grid)
+    # one interpolation over all samples; rows inside a gap step (or outside the samples) are then
+    # cut: inside a segment, the two samples around a row are that segment's own
+    out = np.interp(grid, t, v)
+    j = np.clip(np.searchsorted(t, grid, side="right"), 1, len(t) - 1)
+    gap = np.zeros(len(t) - 1, bool)
+    gap[st["gap_steps"]] = True
+    on_sample = grid == t[j - 1]
+    bad = (grid < t[0]) | (grid > t[-1]) | (gap[j - 1] & ~on_sample)
+    out[bad] = np.nan
+    frac = (grid[~bad] - t[j - 1][~bad]) / (t[j] - t[j - 1])[~bad]
     return out, np.clip(frac, 0.0, 1.0), st, filtered
 
 
