@@ -437,3 +437,24 @@ def test_attitude_report_run_block_shows_the_time_base(tmp_path):
     assert tb["resampled"] is True and tb["method"] == "linear" and tb["gaps"] == []
     assert tb["jitter_max_rel"] == pytest.approx(np.max(np.abs(np.diff(t) / np.median(np.diff(t)) - 1)), rel=1e-6)
     assert rep["provenance"]["reading"]["time_base"]["reference"]["samples"] == 600
+
+
+def test_resample_equals_interpolation_segment_by_segment():
+    """One interpolation with the gap rows cut == np.interp inside each segment separately
+    (many gaps, some isolated samples), NaN outside every segment."""
+    from jaxdrift.io._timebase import resample, sample_segments, step_stats
+
+    rng = np.random.default_rng(4032)
+    gaps = [(int(i), int(k)) for i, k in zip(rng.choice(np.arange(5, 4990), 120, replace=False),
+                                              rng.integers(1, 6, 120))]
+    t = _jittered_t(5000, 0.01, rng, jitter=0.2, gaps=gaps)
+    v = rng.normal(size=len(t))
+    grid = t[0] + np.arange(int((t[-1] - t[0]) / 0.01) + 1) * 0.01
+    out, frac, st, _ = resample(t, v, grid)
+    ref = np.full(len(grid), np.nan)
+    for a, b in sample_segments(len(t), st["gap_steps"]):
+        m = (grid >= t[a]) & (grid <= t[b - 1])
+        ref[m] = np.interp(grid[m], t[a:b], v[a:b])
+    np.testing.assert_array_equal(np.isnan(out), np.isnan(ref))
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12, equal_nan=True)
+    assert len(frac) == np.isfinite(out).sum() and np.all((frac >= 0) & (frac <= 1))
