@@ -37,11 +37,11 @@ from ._attitude_files import (
     read_sensors as read_sensors,
 )
 from ._export import export_recorded_csv as export_recorded_csv
-from ._logs import list_topics as list_topics
+from ._logs import list_topics as list_topics, read_log as read_log
 from ._timebase import GAP_FACTOR as GAP_FACTOR
 
 __all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'GAP_FACTOR', 'InputError', 'MIN_DURATION_S',
            'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
-           'attitude_segments', 'check_outputs', 'export_recorded_csv', 'list_topics', 'load_run', 'provenance',
+           'attitude_segments', 'check_outputs', 'export_recorded_csv', 'list_topics', 'load_run', 'provenance', 'read_log',
            'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
            'write_json', 'write_vehicle_run']
