@@ -76,6 +76,8 @@ def test_jittered_csv_refused_strict_and_resampled_otherwise(tmp_path):
     err = np.abs(run["w"] - _w(g))
     assert np.all(np.isfinite(err)) and err.max() <= bound
     assert err.max() > bound / 100  # the bound is not vacuous: the grid is not the samples
+    np.testing.assert_allclose(run["w_recorded_t"], t, atol=0)
+    np.testing.assert_allclose(run["w_recorded"], _w(t), atol=1e-11)
 
 
 def test_gap_is_never_interpolated_across(tmp_path):

@@ -52,6 +52,8 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
       :func:`attitude_segments` yields each segment's arrays, all finite;
     - ``q_ref_t`` (m,) and ``q_ref_q`` (m, 4): the reference at its own times (None without);
       ``q_ref`` places each sample on the nearest grid row (NaN elsewhere).
+    - ``w_recorded_t`` (k,) and ``w_recorded`` (k, 3): the rates as recorded, before resampling
+      (where the three share their times; None for a run used as it is: then ``t``, ``w``).
     """
     try:
         run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks,
@@ -96,7 +98,9 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
             "quantisation": _text_rounding(path, run.info, list(CHANNELS)),
             "acc_quantisation": _text_rounding(path, run.info, acc_cols),
             "warnings": run.warnings, "info": run.info, "time_base": run.time_base,
-            "q_ref_t": q_ref_t, "q_ref_q": q_ref_q}
+            "q_ref_t": q_ref_t, "q_ref_q": q_ref_q,
+            "w_recorded_t": run.references["w"][0] if "w" in run.references else None,
+            "w_recorded": run.references["w"][1] if "w" in run.references else None}
 
 
 def _exact_reference(run, where):

@@ -61,6 +61,9 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
         raise InputError(f"{fname}: the channels have no stretch of samples in common "
                          f"({', '.join(streams)}); nothing to analyse")
     notes = [_describe(fname, tb)]
+    rates = [streams[c] for c in ("wx", "wy", "wz") if c in streams]
+    if kind == "attitude" and len(rates) == 3 and all(np.array_equal(r[0], rates[0][0]) for r in rates):
+        refs["w"] = (rates[0][0], np.column_stack([r[1] for r in rates]))  # the rates as recorded
     if "q" in placed:
         for j, c in enumerate(ref_names):
             on_grid[c] = placed["q"][:, j]
