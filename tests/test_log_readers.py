@@ -460,3 +460,19 @@ def test_resample_equals_interpolation_segment_by_segment():
     np.testing.assert_array_equal(np.isnan(out), np.isnan(ref))
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12, equal_nan=True)
     assert len(frac) == np.isfinite(out).sum() and np.all((frac >= 0) & (frac <= 1))
+
+
+def test_ulog_reference_samples_that_are_no_rotation_are_left_out(tmp_path):
+    """A flight controller logs zeros before its estimator has an attitude: those samples are
+    left out of the reference with a note (a CSV with such a row is refused, as before)."""
+    pyulog = pytest.importorskip("pyulog")
+    path = tmp_path / "syn.ulg"
+    _, _, tq, q = _synthetic_ulog(path, gaps=())
+    u = pyulog.ULog(str(path))
+    va = u.get_dataset("vehicle_attitude")
+    for j in range(4):
+        va.data[f"q[{j}]"][:5] = 0.0
+    u.write_ulog(str(tmp_path / "zeros.ulg"))
+    run = read_attitude_run(str(tmp_path / "zeros.ulg"))
+    np.testing.assert_allclose(run["q_ref_t"], tq[5:], atol=1e-9)
+    assert any("5 of" in n and "no unit quaternion" in n for n in run["info"]["notes"])

@@ -19,9 +19,11 @@ from ._timebase import build_time_base
 __all__ = ["apply_policy", "REFERENCE_COLUMNS"]
 
 REFERENCE_COLUMNS = ("qw", "qx", "qy", "qz")
+#: a logged reference sample whose norm is further than this from 1 is no attitude (left out)
+LOG_QUAT_NORM_TOL = 1e-3
 
 
-def _reference(cols: Columns, data: dict, times, names) -> tuple[np.ndarray, np.ndarray]:
+def _reference(cols: Columns, data: dict, times, names, notes=None) -> tuple[np.ndarray, np.ndarray]:
     """The reference quaternion's samples at their own times (rows with all four cells)."""
     tq = times(names[0])
     for c in names[1:]:
@@ -36,6 +38,16 @@ def _reference(cols: Columns, data: dict, times, names) -> tuple[np.ndarray, np.
         j = int(np.argmax(~fin[i]))
         raise InputError(f"{cols.where(i, names[j])}: empty or NaN while other quaternion cells are set")
     have = fin.all(1)
+    if cols.fmt in ("ulog", "bag"):
+        # a flight controller logs its attitude before the estimator has one (zeros) or after a
+        # reset: samples that are no rotation are left out of the reference, with a note
+        norms = np.linalg.norm(np.where(fin, q, 0.0), axis=1)
+        bad = have & (np.abs(norms - 1.0) > LOG_QUAT_NORM_TOL)
+        if bad.any():
+            (notes if notes is not None else []).append(f"{file_label(cols.path)}: {int(bad.sum())} of {int(have.sum())} reference samples "
+                              f"are no unit quaternion (norm {float(norms[bad][0]):.3g} at t = {float(tq[bad][0]):.6f} s) "
+                              f"and are left out")
+            have &= ~bad
     return tq[have], q[have]
 
 
@@ -45,7 +57,8 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
     fname = file_label(cols.path)
     times_of = (lambda c: cols.times[c]) if cols.times else (lambda c: t_raw)
     ref_names = [c for c in REFERENCE_COLUMNS if c in data] if kind == "attitude" else []
-    refs = {"q": _reference(cols, data, times_of, ref_names)} if ref_names else {}
+    ref_notes: list[str] = []
+    refs = {"q": _reference(cols, data, times_of, ref_names, ref_notes)} if ref_names else {}
     streams = {c: (times_of(c), v) for c, v in data.items() if c not in ref_names}
     primary = "wx" if kind == "attitude" else "f1"
     for c, (t, _) in streams.items():
@@ -60,7 +73,7 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
     if not tb["segments"]:
         raise InputError(f"{fname}: the channels have no stretch of samples in common "
                          f"({', '.join(streams)}); nothing to analyse")
-    notes = [_describe(fname, tb)]
+    notes = [_describe(fname, tb)] + ref_notes
     rates = [streams[c] for c in ("wx", "wy", "wz") if c in streams]
     if kind == "attitude" and len(rates) == 3 and all(np.array_equal(r[0], rates[0][0]) for r in rates):
         refs["w"] = (rates[0][0], np.column_stack([r[1] for r in rates]))  # the rates as recorded
