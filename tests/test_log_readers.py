@@ -476,3 +476,26 @@ def test_ulog_reference_samples_that_are_no_rotation_are_left_out(tmp_path):
     run = read_attitude_run(str(tmp_path / "zeros.ulg"))
     np.testing.assert_allclose(run["q_ref_t"], tq[5:], atol=1e-9)
     assert any("5 of" in n and "no unit quaternion" in n for n in run["info"]["notes"])
+
+
+def test_gapped_attitude_run_is_diagnosed_not_crashed(tmp_path, capsys):
+    """Until the attitude diagnosis analyses segments jointly (SEGMENTS_JOINT), `diagnose` gives
+    it the longest segment, says so, and the report's run block names it."""
+    import json
+
+    from jaxdrift.diagnosis.attitude import _pipeline
+
+    rng = np.random.default_rng(4033)
+    t = _jittered_t(2500, 0.005, rng, jitter=0.02, gaps=[(700, 8)])
+    w = _w(t) + rng.normal(0, 1e-3, (len(t), 3))
+    path = tmp_path / "gap.csv"
+    _write_csv(path, t, w, _quat(t), np.where(np.arange(len(t)) % 5 == 0, np.arange(len(t)), -1))
+    out = tmp_path / "r.json"
+    assert cli.main(["diagnose", str(path), "--json", str(out)]) == 0
+    rep = json.loads(out.read_text())
+    tb = rep["run"]["time_base"]
+    joint = getattr(_pipeline, "SEGMENTS_JOINT", False)
+    if not joint:
+        assert tb["analysed_segment"] == tb["segments"][1] and rep["run"]["rows"] == np.diff(tb["segments"][1])[0]
+        assert "analyses the longest" in capsys.readouterr().err
+    assert len(tb["gaps"]) == 1

@@ -93,7 +93,7 @@ def run_diagnose(args) -> int:
         from ..diagnosis.attitude._diagnose import read_sensors
         from ..io._attitude_files import read_attitude_run
 
-        run = read_attitude_run(args.run, checks=True, **opts)
+        run = _longest_segment_unless_joint(read_attitude_run(args.run, checks=True, **opts), c)
         for w in run["warnings"]:
             c.warn(w)
         for n in run["info"]["notes"]:
@@ -183,6 +183,28 @@ def run_diagnose(args) -> int:
     bar.close()
     c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))
     return 0
+
+
+def _longest_segment_unless_joint(run: dict, c) -> dict:
+    """An attitude run split by gaps (NaN rows between its segments) goes to the diagnosis whole
+    where the diagnosis analyses segments jointly (``SEGMENTS_JOINT`` in
+    ``jaxdrift.diagnosis.attitude._pipeline``); otherwise its longest segment does, with a warning
+    naming what is left out (never NaN rows into a diagnosis that assumes finite rates)."""
+    from ..diagnosis.attitude import _pipeline
+    from ..io import attitude_segments
+
+    segs = run.get("time_base", {}).get("segments") or [[0, len(run["t"])]]
+    if getattr(_pipeline, "SEGMENTS_JOINT", False) or segs == [[0, len(run["t"])]]:
+        return run
+    parts = attitude_segments(run)
+    best = max(parts, key=lambda p: len(p["t"]))
+    out = dict(run)
+    out.update({k: best[k] for k in ("t", "w", "q_ref", "acc")})
+    out["time_base"] = {**run["time_base"], "analysed_segment": list(best["rows"])}
+    i0, i1 = best["rows"]
+    c.warn(f"{run['path']}: {len(segs)} segments split by gaps; the attitude diagnosis analyses the longest, "
+           f"{run['t'][i0]:.6g} .. {run['t'][i1 - 1]:.6g} s ({i1 - i0} of {sum(b - a for a, b in segs)} rows)")
+    return out
 
 
 class _BarLog(list):
