@@ -302,7 +302,7 @@ def _imu_msgs(store, t, w, q=None, kind="ROS2"):
 
 @pytest.mark.parametrize("ros", [1, 2])
 @pytest.mark.parametrize("with_q", [True, False])
-def test_ros_bag_imu(tmp_path, ros, with_q):
+def test_ros_bag_imu(tmp_path, monkeypatch, ros, with_q):
     pytest.importorskip("rosbags")
     from rosbags.typesys import Stores, get_typestore
 
@@ -345,6 +345,21 @@ def test_ros_bag_imu(tmp_path, ros, with_q):
         assert run["q_ref"] is None and run["q_ref_t"] is None
     rows = cli.main(["topics", str(path)])
     assert rows == 0
+    # the numpy path over the raw messages is taken, and reads what rosbags deserialises
+    from jaxdrift.io import _bag_fast, _logs
+
+    reader = _logs._bag_reader(path)
+    try:
+        conns = [c for c in reader.connections if c.topic == "/imu/data"]
+        assert _bag_fast.imu_series(reader, conns, ["angular_velocity.x"], _logs._stamp, _logs._getter) is not None
+    finally:
+        reader.close()
+    monkeypatch.setattr(_bag_fast, "imu_series", lambda *args: None)
+    slow = read_attitude_run(str(path))
+    np.testing.assert_array_equal(slow["w"], run["w"])
+    np.testing.assert_array_equal(slow["t"], run["t"])
+    if with_q:
+        np.testing.assert_array_equal(slow["q_ref_q"], run["q_ref_q"])
 
 
 def test_parquet_with_jittered_time_reads_as_the_csv(tmp_path):
@@ -499,3 +514,31 @@ def test_gapped_attitude_run_is_diagnosed_not_crashed(tmp_path, capsys):
         assert tb["analysed_segment"] == tb["segments"][1] and rep["run"]["rows"] == np.diff(tb["segments"][1])[0]
         assert "analyses the longest" in capsys.readouterr().err
     assert len(tb["gaps"]) == 1
+
+
+def test_ros_bag_with_varying_frame_names_reads_message_by_message(tmp_path):
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from jaxdrift.io import _bag_fast, _logs
+
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    t = _jittered_t(200, 0.005, np.random.default_rng(4034)) + 50.0
+    msgs = _imu_msgs(store, t, _w(t), _quat(t))
+    for i, m in enumerate(msgs):
+        m.header.frame_id = "imu" if i % 2 else "imu_link"  # two lengths: no fixed layout
+    path = tmp_path / "bag2"
+    with Writer(path, version=9) as wr:
+        c = wr.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=store)
+        for ti, m in zip(t, msgs):
+            wr.write(c, int(ti * 1e9), store.serialize_cdr(m, "sensor_msgs/msg/Imu"))
+    reader = _logs._bag_reader(path)
+    try:
+        assert _bag_fast.imu_series(reader, list(reader.connections), ["angular_velocity.x"],
+                                    _logs._stamp, _logs._getter) is None
+    finally:
+        reader.close()
+    run = read_attitude_run(str(path))
+    np.testing.assert_allclose(run["q_ref_q"], _quat(t), atol=1e-12)
+    np.testing.assert_allclose(run["w_recorded"], _w(t), atol=1e-12)

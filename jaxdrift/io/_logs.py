@@ -259,6 +259,11 @@ def _bag_series(reader, topic, fields, fname):
         hint = difflib.get_close_matches(topic, topics, n=1, cutoff=0.5)
         did = f"; did you mean {hint[0]!r}?" if hint else ""
         raise InputError(f"{fname}: no topic {topic!r} in the bag{did} (topics: {', '.join(topics)})")
+    from ._bag_fast import imu_series
+
+    fast = imu_series(reader, conns, fields, _stamp, _getter)
+    if fast is not None:
+        return fast
     getters = [_getter(f) for f in fields]
     t, rows = [], []
     for conn, ts, raw in reader.messages(connections=conns):
