@@ -334,12 +334,10 @@ def _bag_topics(path) -> list[dict]:
         for topic in sorted({c.topic for c in reader.connections}):
             conns = [c for c in reader.connections if c.topic == topic]
             t, first = [], None
-            for conn, ts, raw in reader.messages(connections=conns):
+            for conn, ts, raw in reader.messages(connections=conns):  # rate from the recording times
                 if first is None:
                     first = reader.deserialize(raw, conn.msgtype)
-                    t.append(_stamp(first, ts))
-                else:
-                    t.append(ts * 1e-9)
+                t.append(ts * 1e-9)
             t = np.sort(np.asarray(t))
             dur = float(t[-1] - t[0]) if t.size > 1 else 0.0
             d = np.diff(t)
