@@ -542,3 +542,14 @@ def test_ros_bag_with_varying_frame_names_reads_message_by_message(tmp_path):
     run = read_attitude_run(str(path))
     np.testing.assert_allclose(run["q_ref_q"], _quat(t), atol=1e-12)
     np.testing.assert_allclose(run["w_recorded"], _w(t), atol=1e-12)
+
+
+def test_log_times_zero_repeated_and_out_of_order_are_noted():
+    from jaxdrift.io._logs import _clean_times
+
+    t = np.array([0.0, 1.0, 2.0, 2.0, 4.0, 3.0, 5.0])
+    v = np.arange(7.0)
+    tc, (vc,), notes = _clean_times("x.ulg", "topic:0", t, [v])
+    np.testing.assert_array_equal(tc, [1.0, 2.0, 3.0, 4.0, 5.0])
+    np.testing.assert_array_equal(vc, [1.0, 2.0, 5.0, 4.0, 6.0])
+    assert len(notes) == 3 and "zero time stamp" in notes[0] and "sorted" in notes[1] and "repeating" in notes[2]

@@ -100,12 +100,18 @@ def _open_ulog(path, topics=None):
 
 
 def _ulog_times(d) -> np.ndarray:
-    key = "timestamp_sample" if "timestamp_sample" in d.data else "timestamp"
-    return np.asarray(d.data[key], dtype=np.float64) * 1e-6
+    """``timestamp_sample`` (when the sensor sampled) where the topic has it and it never goes
+    backwards, else ``timestamp`` (when the message was published) [s]."""
+    if "timestamp_sample" in d.data:
+        ts = np.asarray(d.data["timestamp_sample"], dtype=np.float64) * 1e-6
+        live = ts[ts > 0]
+        if live.size and np.all(np.diff(live) >= 0):
+            return ts
+    return np.asarray(d.data["timestamp"], dtype=np.float64) * 1e-6
 
 
 def _clean_times(fname, name, t, vals):
-    """Drop zero stamps and exact repeats (noted); refuse time going backwards."""
+    """Drop zero stamps and exact repeats; samples out of time order are sorted (all noted)."""
     notes = []
     keep = t > 0
     if not keep.all():
@@ -114,7 +120,11 @@ def _clean_times(fname, name, t, vals):
     d = np.diff(t)
     if np.any(d < 0):
         i = int(np.argmax(d < 0)) + 1
-        raise InputError(f"{fname}, {name}, sample {i + 1}: time goes backwards ({t[i]:.6f} s after {t[i - 1]:.6f} s)")
+        notes.append(f"{fname}: {name}: {int((d < 0).sum())} sample(s) out of time order (first at sample {i + 1}: "
+                     f"{t[i]:.6f} s after {t[i - 1]:.6f} s); sorted by time")
+        order = np.argsort(t, kind="stable")
+        t, vals = t[order], [v[order] for v in vals]
+        d = np.diff(t)
     rep = np.concatenate([[True], d > 0])
     if not rep.all():
         notes.append(f"{fname}: {name}: {int((~rep).sum())} sample(s) repeating the previous time stamp dropped")
@@ -300,10 +310,6 @@ def _read_bag(path, want: list[str]) -> tuple[dict, list[str], dict]:
     try:
         for topic, items in by_topic.items():
             t, vals = _bag_series(reader, topic, [f for _, f in items], fname)
-            order = np.argsort(t, kind="stable")
-            if np.any(np.diff(t) < 0):
-                notes.append(f"{fname}: {topic}: messages recorded out of time order; sorted by time stamp")
-            t, vals = t[order], [v[order] for v in vals]
             t, vals, nt = _clean_times(fname, topic, t, vals)
             notes += nt
             for (w, _), v in zip(items, vals):
