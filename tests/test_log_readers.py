@@ -401,8 +401,9 @@ def test_mf4_attitude_reference_on_its_own_times(tmp_path):
 
 
 def test_ulog_fast_path_reads_what_pyulog_reads(tmp_path, monkeypatch):
-    """The fast path (headers walked, payloads read by numpy) gives pyulog's arrays bit for bit;
-    a log it does not take (appended data, corruption) goes to pyulog with the same result."""
+    """The fast path (headers walked, payloads read by numpy) gives pyulog's arrays bit for bit,
+    every topic of every log at hand (appended data included); a log it does not take (a corrupt
+    or unknown message) goes to pyulog with the same result."""
     pyulog = pytest.importorskip("pyulog")
     from jaxdrift.io import _ulog_fast
 
@@ -416,6 +417,15 @@ def test_ulog_fast_path_reads_what_pyulog_reads(tmp_path, monkeypatch):
         assert set(got[key]) == set(data)
         for f, v in data.items():
             np.testing.assert_array_equal(got[key][f], v)
+    for log in (SMALL, DATA / "sample_appended_multiple.ulg", DATA / "sample.ulg"):  # every topic
+        if not log.exists():
+            continue  # the larger pyulog logs come with the real-data validation
+        fast = _ulog_fast.read_topics(log, None, pyulog.ULog)
+        u = pyulog.ULog(str(log))
+        ref = {(d.name, d.multi_id): d.data for d in u.data_list}
+        got = {(d.name, d.multi_id): d.data for d in fast[0]}
+        assert set(got) == set(ref) and fast[2] == [d.duration for d in u.dropouts]
+        assert all(np.array_equal(got[k][f], v, equal_nan=True) for k in ref for f, v in ref[k].items())
     a = read_attitude_run(str(SMALL))
     monkeypatch.setattr(_ulog_fast, "read_topics", lambda *args: None)
     b = read_attitude_run(str(SMALL))

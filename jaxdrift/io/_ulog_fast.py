@@ -5,8 +5,9 @@ alike: 20 s for a 30-minute, 100 MiB flight log on a loaded 2-core machine. Here
 headers are walked in a tight loop that only notes where the wanted topics' data messages are;
 their payloads are then joined and read with numpy in one go, with the dtype pyulog builds from the
 log's own format definitions (so field names, nesting and padding are pyulog's). A log this path
-does not handle exactly as pyulog would (appended data, a corrupt or unknown message, a data
-message of an unexpected size) returns None, and the caller reads it with pyulog.
+does not handle exactly as pyulog would (a corrupt or unknown message, a data
+message of an unexpected size) returns None, and the caller reads it with pyulog. Appended data
+(PX4 writes it after the log is closed) is walked range by range, as pyulog reads it.
 """
 
 from __future__ import annotations
@@ -22,11 +23,19 @@ _A, _D, _O = ord("A"), ord("D"), ord("O")
 _CHUNK = 65536
 
 
-def _walk(buf: bytes, start: int, wanted_names, formats, ULog):
-    """(subscriptions {msg_id: AddLogged}, {msg_id: [positions]}, dropout ms list) or None."""
+def _walk(buf: bytes, ranges, wanted_names, formats, ULog):
+    """(subscriptions {msg_id: AddLogged}, {msg_id: [positions]}, dropout ms list) or None.
+    ``ranges``: (start, end) byte ranges read in turn (pyulog's order for appended data: a
+    message that would cross the end of its range ends the range)."""
     subs, pos_of, dropouts = {}, {}, []
+    for start, end in ranges:
+        if _walk_range(buf, start, end, wanted_names, formats, ULog, subs, pos_of, dropouts) is None:
+            return None
+    return subs, pos_of, dropouts
+
+
+def _walk_range(buf, pos, end, wanted_names, formats, ULog, subs, pos_of, dropouts):
     get = pos_of.get
-    pos, end = start, len(buf)
     while pos + 3 <= end:
         nxt = pos + 3 + (buf[pos] | (buf[pos + 1] << 8))
         if nxt > end:
@@ -49,7 +58,7 @@ def _walk(buf: bytes, start: int, wanted_names, formats, ULog):
         elif typ not in _KNOWN:
             return None
         pos = nxt
-    return subs, pos_of, dropouts
+    return True
 
 
 def read_topics(path, topics, ULog):
@@ -57,12 +66,17 @@ def read_topics(path, topics, ULog):
     plus the log's info and dropouts: ``(data_list, msg_info_dict, dropouts_ms,
     message_formats)``; None where only pyulog can read the log exactly."""
     head = ULog(str(path), message_name_filter_list=[], parse_header_only=True)
-    if head.has_data_appended or head.file_corruption:
+    if head.file_corruption:
         return None
     with open(path, "rb") as fh:
         buf = fh.read()
+    offsets = list(getattr(head, "_appended_offsets", []) or []) if head.has_data_appended else []
+    if any(not 16 <= o <= len(buf) for o in offsets) or offsets != sorted(offsets):
+        return None
+    edges = [16] + offsets + [len(buf)]
+    ranges = list(zip(edges[:-1], edges[1:]))
     try:
-        walked = _walk(buf, 16, None if topics is None else set(topics), head.message_formats, ULog)
+        walked = _walk(buf, ranges, None if topics is None else set(topics), head.message_formats, ULog)
     except (KeyError, IndexError, ValueError):  # a format pyulog would have to judge
         return None
     if walked is None:
