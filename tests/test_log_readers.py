@@ -563,3 +563,14 @@ def test_log_times_zero_repeated_and_out_of_order_are_noted():
     np.testing.assert_array_equal(tc, [1.0, 2.0, 3.0, 4.0, 5.0])
     np.testing.assert_array_equal(vc, [1.0, 2.0, 5.0, 4.0, 6.0])
     assert len(notes) == 3 and "zero time stamp" in notes[0] and "sorted" in notes[1] and "repeating" in notes[2]
+
+
+def test_fs_on_a_jittered_csv_sets_the_grid_and_is_checked(tmp_path):
+    rng = np.random.default_rng(4035)
+    t = _jittered_t(1000, 0.005, rng, jitter=0.02)
+    path = tmp_path / "jit.csv"
+    _write_csv(path, t, _w(t))
+    run = read_attitude_run(str(path), fs=200.0)
+    assert run["time_base"]["fs"] == 200.0 and run["dt"] == pytest.approx(0.005, rel=1e-12)
+    with pytest.raises(UsageError, match=r"median\), but --fs 250 gives 0.004 s"):
+        read_attitude_run(str(path), fs=250.0)
