@@ -64,7 +64,8 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     where = _where(run)
     w = np.column_stack([ch[c] for c in CHANNELS])
     q_ref_t = q_ref_q = None
-    if "q" in run.references and len(run.references["q"][0]):
+    if "q" in run.references and len(run.references["q"][0]) and run.time_base.get("resampled"):
+        # a resampled run's rows are no file lines: its reference is checked sample by sample
         q_ref_t, q_ref_q = _exact_reference(run, where)
     q_ref = None
     if all(c in ch for c in Q_COLS):
@@ -83,6 +84,8 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
             raise _usage_error(f"{where(i, None)}, columns qw..qz: quaternion norm {norms[i]:.6g} is far from 1 "
                                f"(tolerance {QUAT_NORM_TOL:g})")
         q_ref = np.where(have[:, None], q_ref / norms[:, None], np.nan) if have.any() else None
+    if q_ref_t is None and "q" in run.references and len(run.references["q"][0]):
+        q_ref_t, q_ref_q = _exact_reference(run, where)  # (checked per line above)
     k, acc = 1, []
     while f"a{k}x" in ch:
         acc.append(np.column_stack([ch[f"a{k}{a}"] for a in "xyz"]))
