@@ -158,16 +158,16 @@ def test_forces_only_noise_is_a_bound():
 # ----------------------------------------------------------------------------- static load
 def test_a_run_that_starts_on_rough_road_at_speed_is_not_refused(tmp_path):
     """A class D road at 25 m/s cut where the first 0.2 s carry 0.30 of the weight (the wheels
-    nearly airborne): the whole run's mean of f1 + f2 is the weight within 1 %, and the run is
+    nearly airborne): the whole run's mean of f1 + f2 is the weight within 5 %, and the run is
     read. The first 0.2 s alone would have been refused (ratio below 1/1.5)."""
-    cols, _ = gs.make_run(SEED_CAR, duration=20.0, fs=500.0, speed=25.0, road_class="D", seed=0,
+    cols, _ = gs.make_run(SEED_CAR, duration=6.0, fs=500.0, speed=25.0, road_class="D", seed=0,
                           channels=("beta",), road_n_max=10.0, road_waves=120)
     w = (SEED_CAR["m1"] + SEED_CAR["m2"] + SEED_CAR["m3"]) * SEED_CAR["g"]
     i0 = 945
     cut = {k: v[i0:] for k, v in cols.items()}
     s = cut["f1"] + cut["f2"]
     assert np.mean(s[:100]) / w < 1 / 1.5  # what the first 0.2 s say
-    assert abs(np.mean(s) / w - 1.0) < 0.02
+    assert abs(np.mean(s) / w - 1.0) < 0.05
     path = tmp_path / "d25.csv"
     write_vehicle_run(path, cut.pop("t"), cut)
     run = read_vehicle_run(path, model=SEED_CAR, checks=True)
