@@ -15,6 +15,7 @@ import numpy as np
 from ..errors import UsageError
 from ..io._csvio import DEFAULT_MODEL, MODEL_KEYS
 from ..io._provenance import jaxdrift_version
+from ._joint import CONSISTENCY_LEVEL, check_consistency
 from ._manifest import RunSpec, cache_key, read_manifest, run_specs
 
 __all__ = ["campaign", "SCHEMA"]
@@ -83,7 +84,7 @@ def _groups(specs, ok):
 def _joint(client, specs, results, names, model, model_given, progress, log):
     """The joint fit over the runs that were diagnosed; its result as plain JSON-able data."""
     from ..diagnosis.vehicle._causes import Cause
-    from ._joint import JointFit, _merge, consistency, joint_findings, sensor_causes_of
+    from ._joint import JointFit, _merge, consistency, sensor_causes_of
 
     ok = [i for i, r in enumerate(results) if r["status"] == "ok"]
     if not ok:
@@ -99,12 +100,6 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     order, A, b, M, outs = fit._blocks(shared, theta, final=True)
     state = (order, A, b, M, outs, theta)
     cov = fit.covariance(state, len(shared))
-    named = {}
-    for i in ok:
-        for f in results[i]["report"].get("findings", []):
-            if f.get("cause") == "parameter_error":
-                named[f["parameter"]] = named.get(f["parameter"], 0) + 1
-    findings = joint_findings(shared, theta, cov, len(ok), named)
     run_names = [names[i] for g in groups for i in g]
     p_of = [len(shared) + len(n) for n in fit.nuis]
     cons = consistency(shared, theta, state, JointFit.sigma2, run_names, p_of)
@@ -118,10 +113,9 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     sd = np.sqrt(np.maximum(np.diag(cov), 0.0)) if len(shared) else np.zeros(0)
     corr = (cov / np.outer(sd, sd)).tolist() if len(shared) and np.all(sd > 0) else []
     return {
-        "findings": findings,
         "extended_model": {"parameters": {k: float(p_joint[k]) for k in MODEL_KEYS},
                            "runs": {names[i]: per_run[i]["corrections"] for i in ok}},
-        "consistency": consistency_summary(cons),
+        "consistency": {"parameters": cons},
         "covariance": {"parameters": [c.target for c in shared], "theta": [float(x) for x in theta],
                        "theta_covariance": cov.tolist(), "correlation": corr,
                        "theta_definition": "true parameter = (1 + theta) x model"},
@@ -132,11 +126,29 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     }
 
 
+def _findings(joint: dict, results) -> list[dict]:
+    """The joint findings from the fit (estimate, covariance, consistency)."""
+    from ..diagnosis.vehicle._causes import Cause
+    from ._joint import joint_findings
+
+    ok = [r for r in results if r["status"] == "ok"]
+    named: dict = {}
+    for r in ok:
+        for f in r["report"].get("findings", []):
+            if f.get("cause") == "parameter_error":
+                named[f["parameter"]] = named.get(f["parameter"], 0) + 1
+    cov = joint["covariance"]
+    shared = [Cause("parameter_error", p) for p in cov["parameters"]]
+    return joint_findings(shared, np.asarray(cov["theta"], float), np.asarray(cov["theta_covariance"], float).reshape(
+        len(shared), len(shared)), len(ok), named, joint["consistency"]["parameters"])
+
+
 def consistency_summary(cons):
-    return {"level": 0.01, "method": (
+    return {"level": CONSISTENCY_LEVEL, "method": (
         "each run's own estimate of the parameter (the other shared parameters held at the joint "
-        "values, the run's sensor effects refitted), chi-square of their scatter about the joint "
-        "estimate; runs outside their 95 % interval after Bonferroni over the runs are listed"),
+        "values, the run's sensor effects projected out) with its single-run interval (sandwich "
+        "variance and the resolution floor); chi-square of their scatter about the joint estimate; "
+        "runs outside their 95 % interval after Bonferroni over the runs are listed"),
         "parameters": cons}
 
 
@@ -205,6 +217,9 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
                 from ._tasks import _write_cache
 
                 _write_cache(jfile, joint)
+        if joint is not None:  # what the fit implies, from the fit (cached or new)
+            joint["consistency"] = consistency_summary([check_consistency(e) for e in joint["consistency"]["parameters"]])
+            joint["findings"] = _findings(joint, results)
         dur = None
         if durability and joint is not None:
             from ._damage import campaign_durability

@@ -59,8 +59,9 @@ def _client_mc(spec, model, model_given, extended, noise, paths, seed, basquin_k
     """The force-noise Monte Carlo of one run in this process (across all processes' devices)."""
     from ..durability._analysis import monte_carlo_damage, section_forces
     from ..durability._variants import SIMULATED
-    from ._tasks import load_spec
+    from ._tasks import _x64, load_spec
 
+    _x64()
     run = load_spec(spec, model, model_given)
     ch = run.channels
     nom = section_forces(run.t, ch["f1"], ch["f2"], model, beta=ch.get("beta"), beta_rate=ch.get("beta_rate"),

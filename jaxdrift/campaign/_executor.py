@@ -46,7 +46,7 @@ def dask_client(*, workers: int | None = None, scheduler: str | None = None):
     if n < 1:
         raise UsageError(f"--workers must be >= 1, got {n}")
     cluster = distributed.LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
-                                       dashboard_address=None, silence_logs=40)
+                                       dashboard_address=":0", silence_logs=40)  # any free port: no clash, no warning
     try:
         client = distributed.Client(cluster)
         try:

@@ -218,15 +218,13 @@ def _blocks_call(g, *, groups, theta_nuis, nuis, **kw):
 
 def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[dict]:
     """Per shared parameter: each run's own estimate (the other shared parameters held at the joint
-    values, the run's sensor effects refitted), its variance, the chi-square of their scatter about
-    the joint value and the runs outside their 95 % intervals (Bonferroni over the runs)."""
+    values, the run's sensor effects projected out: one Gauss-Newton step from the joint value) and
+    its sandwich standard error; :func:`check_consistency` tests their scatter."""
     _, _, _, _, outs, _ = state
     rows = [(r, p_of_run[g]) for g, o in enumerate(outs) for r in o["runs"]]
-    n = len(rows)
-    z_bonf = float(scipy.stats.norm.isf(0.025 / max(n, 1)))
     out = []
     for j, c in enumerate(shared):
-        ests = []
+        per_run = []
         for (r, p), name in zip(rows, run_names):
             a = r["A"][j, j]
             if a <= 0:
@@ -234,36 +232,61 @@ def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[di
             var = sigma2_fn(r, p) * r["M"][j, j] / a ** 2
             if not (var > 0 and math.isfinite(var)):
                 continue
-            ests.append((name, float(theta[j] - r["b"][j] / a), var))
-        q = float(sum((e - theta[j]) ** 2 / v for _, e, v in ests))
-        dof = max(len(ests) - 1, 1)
-        pval = float(scipy.stats.chi2.sf(q, dof))
-        bad = [{"run": nm, "estimate": c.to_estimate(e), "interval": [c.to_estimate(e - 1.96 * math.sqrt(v)),
-                                                                         c.to_estimate(e + 1.96 * math.sqrt(v))],
-                "z": (e - theta[j]) / math.sqrt(v)}
-               for nm, e, v in ests if abs(e - theta[j]) / math.sqrt(v) > z_bonf]
-        out.append({"parameter": c.target, "joint_estimate": c.to_estimate(theta[j]), "runs": len(ests),
-                    "chi2": q, "dof": dof, "p_value": pval, "consistent": pval >= CONSISTENCY_LEVEL and not bad,
-                    "disagreeing_runs": bad,
-                    "per_run": [{"run": nm, "estimate": c.to_estimate(e), "se": math.sqrt(v)} for nm, e, v in ests]})
+            per_run.append({"run": name, "estimate": c.to_estimate(theta[j] - r["b"][j] / a), "se": math.sqrt(var)})
+        out.append({"parameter": c.target, "joint_estimate": c.to_estimate(theta[j]), "per_run": per_run})
     return out
 
 
-def joint_findings(shared, theta, cov, n_runs: int, named: dict) -> list[dict]:
-    """The report's finding objects for the shared parameters (95 % intervals, then widened to
-    hold jointly as in a single-run report)."""
+def check_consistency(entry: dict) -> dict:
+    """The scatter of the runs' own estimates of a shared parameter about the joint value: each
+    run's variance is its sandwich variance plus the single-run resolution floor in quadrature (its
+    single-run interval), the chi-square on runs - 1 degrees of freedom, and the runs outside their
+    95 % interval after Bonferroni over the runs."""
+    c = Cause("parameter_error", entry["parameter"])
+    floor_se = _practical(c, None) / 1.96
+    th = entry["joint_estimate"] - 1.0
+    ests = [(r["run"], r["estimate"] - 1.0, r["se"] ** 2 + floor_se ** 2) for r in entry["per_run"]]
+    n = len(ests)
+    z_bonf = float(scipy.stats.norm.isf(0.025 / max(n, 1)))
+    q = float(sum((e - th) ** 2 / v for _, e, v in ests))
+    dof = max(n - 1, 1)
+    pval = float(scipy.stats.chi2.sf(q, dof))
+    bad = [{"run": nm, "estimate": 1.0 + e, "interval": [1.0 + e - 1.96 * math.sqrt(v), 1.0 + e + 1.96 * math.sqrt(v)],
+            "z": (e - th) / math.sqrt(v)} for nm, e, v in ests if abs(e - th) / math.sqrt(v) > z_bonf]
+    return {**entry, "runs": n, "chi2": q, "dof": dof, "p_value": pval,
+            "consistent": pval >= CONSISTENCY_LEVEL and not bad, "disagreeing_runs": bad}
+
+
+def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: list[dict]) -> list[dict]:
+    """The report's finding objects for the shared parameters, their 95 % intervals widened to
+    hold jointly as in a single-run report.
+
+    The half-width combines, in quadrature as ``_finding_for`` does for one run: the statistical
+    part, ``1.96 se`` with the variance multiplied by the over-dispersion of the runs' own estimates
+    (``max(1, chi2 / dof)`` of the consistency check: scatter between runs beyond their sandwich
+    variances, whatever its cause, widens the joint interval by as much), and the comparison's
+    resolution, the single-run floor divided by the square root of the runs that inform the
+    parameter (the floor is a per-run resolution of the sampled comparison; the runs' rates, roads
+    and records differ, so it averages over them)."""
     from ..diagnosis._intervals import joint_intervals
 
+    cons = {c["parameter"]: c for c in consistency}
     findings = []
     for i, c in enumerate(shared):
-        se = math.sqrt(max(cov[i, i], 0.0))
-        f = _finding_for(c, theta[i], se, _practical(c, None))
+        k = cons.get(c.target, {})
+        n_inf = max(int(k.get("runs", n_runs)), 1)
+        disp = max(1.0, float(k.get("chi2", 0.0)) / max(float(k.get("dof", 1)), 1.0))
+        se = math.sqrt(max(cov[i, i], 0.0) * disp)
+        f = _finding_for(c, theta[i], se, _practical(c, None) / math.sqrt(n_inf))
         z = abs(theta[i]) / se if se > 0 else math.inf
         f["z"] = float(z)
-        k = named.get(c.target, 0)
+        f["overdispersion"] = float(disp)
+        f["runs_informing"] = n_inf
+        nm = named.get(c.target, 0)
         f["evidence"] = (f"fitted jointly over the {n_runs} runs (each logger's sensor effects as nuisance "
-                         f"parameters): {c.to_estimate(theta[i]):.5g}, z = {z:.3g}; {k} of the {n_runs} "
-                         f"single-run diagnoses name it.")
+                         f"parameters): {c.to_estimate(theta[i]):.5g}, z = {z:.3g}; {nm} of the {n_runs} "
+                         f"single-run diagnoses name it; the runs' own estimates scatter {math.sqrt(disp):.3g} x "
+                         f"their standard errors.")
         findings.append(f)
     joint_intervals(findings)
     return findings

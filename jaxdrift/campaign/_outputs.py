@@ -55,7 +55,7 @@ def write_figures(folder: str, doc: dict, results, names) -> list[str]:
             ax.errorbar([est], [y], xerr=[[est - iv[0]], [iv[1] - est]], fmt="o", color="0.35", ms=3, capsize=2)
         ax.errorbar([f["estimate"]], [ys[0]], xerr=[[f["estimate"] - f["interval"][0]], [f["interval"][1] - f["estimate"]]],
                     fmt="D", color="C3", ms=5, capsize=3)
-        ax.axvline(1.0, color="0.7", lw=0.8, ls=":")
+        ax.axvline(f["estimate"], color="C3", lw=0.6, ls=":")
         ax.set_yticks(ys, ["joint"] + [r[0] for r in rows], fontsize=7)
         ax.set_xlabel(f"{p}: true / model (95 % intervals)")
         ax.set_title(f"{p}: joint fit and the {len(rows)} single-run findings naming it", fontsize=9)
