@@ -108,7 +108,8 @@ def test_small_campaign_on_two_worker_processes(tmp_path):
     from jaxdrift.campaign import campaign
 
     data = tmp_path / "data"
-    d = _design(data, 3, 6021, n_shared=1, durations=(5.0, 5.0), rates=(200,))
+    # an inertia error: the cause a single run confuses with a delay
+    d = _design(data, 3, 6021, n_shared=1, durations=(5.0, 5.0), rates=(200,), params=("I",))
     bad = data / "broken.csv"
     bad.write_text("t,f1,f2\n0,1,2\n0.005,nan,2\n")
     with open(data / "campaign.toml", "a") as fh:
@@ -123,12 +124,12 @@ def test_small_campaign_on_two_worker_processes(tmp_path):
     assert len(ok) == 3 and all((out / r["report"]).is_file() for r in ok)
     e = d["shared"][0]
     joint = {f["parameter"]: f for f in doc["joint"]["findings"]}
+    assert set(joint) == {e["parameter"]}
     f = joint[e["parameter"]]
     assert f["interval"][0] <= e["value"] <= f["interval"][1]
     singles = [s["interval"] for r in ok for s in r["findings"] if s.get("parameter") == e["parameter"]]
     assert singles, "no single run names the shared error: the test says nothing"
     assert all(f["interval"][1] - f["interval"][0] < hi - lo for lo, hi in singles)
-    assert set(joint) == {e["parameter"]}
     saved = json.loads((out / "campaign.json").read_text())
     assert saved["joint"]["findings"] == json.loads(json.dumps(doc["joint"]["findings"]))
     # every finished run is in the cache; a rerun computes nothing again
@@ -137,3 +138,21 @@ def test_small_campaign_on_two_worker_processes(tmp_path):
     assert again["provenance"]["cached_runs"] == 3
     assert again["joint"] == json.loads(json.dumps(doc["joint"]))
     assert os.path.isfile(out / "summary.md")
+
+
+def test_consistency_flags_the_run_outside_its_interval():
+    """20 runs scattered with their own standard errors about the truth, one moved by 8 of its
+    interval's half-widths (a load change): only that one is listed, and the check fails."""
+    from jaxdrift.campaign._joint import check_consistency
+
+    rng = np.random.default_rng(11)
+    se = rng.uniform(2e-4, 1e-3, 20)
+    est = 1.0 + se * rng.standard_normal(20)
+    entry = {"parameter": "m3", "joint_estimate": 1.0,
+             "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s)} for i, (e, s) in enumerate(zip(est, se))]}
+    ok = check_consistency(entry)
+    assert ok["consistent"] and ok["dof"] == 19 and not ok["disagreeing_runs"]
+    half = 1.96 * math.hypot(se[7], 2e-4 / 1.96)
+    entry["per_run"][7]["estimate"] = 1.0 + 8 * half
+    bad = check_consistency(entry)
+    assert not bad["consistent"] and [d["run"] for d in bad["disagreeing_runs"]] == ["r7"]

@@ -33,13 +33,15 @@ CAMPAIGN_CHANNELS = ("beta", "beta_z3", "beta_s", "beta_z3_s", "beta_rate", "all
 
 
 def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0),
-                  rates=(200, 250, 300, 400, 500), effect_free: float = 0.3) -> dict:
-    """The campaign's design: the vehicle, its shared errors, the loggers and the runs' cases."""
+                  rates=(200, 250, 300, 400, 500), effect_free: float = 0.3, params=None) -> dict:
+    """The campaign's design: the vehicle, its shared errors, the loggers and the runs' cases.
+    ``params``: the parameters with shared errors (default: ``n_shared`` drawn from ``PARAMS``)."""
     rng = np.random.default_rng(seed)
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     nominal = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
     nominal["g"] = gv.G
-    params = [str(p) for p in rng.choice(gv.PARAMS, size=n_shared, replace=False)]
+    drawn = [str(p) for p in rng.choice(gv.PARAMS, size=n_shared, replace=False)]
+    params = list(params) if params is not None else drawn
     # moderate errors: a single run names some of them, not all, with wide intervals
     shared = [{"cause": "parameter_error", "parameter": p,
                "value": 1.0 + float(rng.choice([-1.0, 1.0])) * gv._loguniform(rng, 0.02, 0.08)} for p in params]

@@ -68,6 +68,18 @@ def diagnose_task(spec, *, model: dict, model_given: bool, model_desc: dict, cac
     from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
     from ..io import provenance
 
+    if cache_file is not None and os.path.isfile(cache_file):
+        # Dask runs a task again when the worker holding its result died before the client took
+        # it: the result this task wrote then is the answer (a finished run is never recomputed)
+        import json
+
+        try:
+            with open(cache_file) as fh:
+                hit = json.load(fh)
+            if hit.get("status") == "ok":
+                return hit
+        except (OSError, ValueError):
+            pass
     t0 = time.monotonic()
     try:
         run = load_spec(spec, model, model_given)
