@@ -16,7 +16,7 @@ from ..errors import UsageError
 from ..io._csvio import DEFAULT_MODEL, MODEL_KEYS
 from ..io._provenance import jaxdrift_version
 from ._joint import CONSISTENCY_LEVEL, check_consistency
-from ._manifest import RunSpec, cache_key, read_manifest, run_specs
+from ._manifest import RunSpec, cache_key, code_digest, read_manifest, run_specs
 
 __all__ = ["campaign", "SCHEMA"]
 
@@ -157,8 +157,8 @@ def _inputs_key(specs, results, model) -> str:
     for s, r in zip(specs, results):
         h.update(json.dumps([s.path, s.logger_id, r["status"], r.get("report", {}).get("provenance", {})
                              .get("inputs", [{}])[0].get("sha256")], default=str).encode())
-    h.update(json.dumps({"model": model, "version": jaxdrift_version(), "joint": JOINT_VERSION},
-                        sort_keys=True).encode())
+    h.update(json.dumps({"model": model, "version": jaxdrift_version(), "code": code_digest(),
+                         "joint": JOINT_VERSION}, sort_keys=True).encode())
     return h.hexdigest()
 
 

@@ -117,14 +117,35 @@ def run_specs(paths, *, map=None, units=None, fs=None, force=False, repetitions=
     return specs
 
 
+_CODE: list = []
+
+
+def code_digest() -> str:
+    """SHA-256 of jaxdrift's own source files: a development checkout changes its code without
+    changing its version number, and a cached result must not outlive the code that made it."""
+    if not _CODE:
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        h = hashlib.sha256()
+        for dirpath, dirs, files in sorted(os.walk(root)):
+            dirs.sort()
+            for f in sorted(files):
+                if f.endswith(".py"):
+                    with open(os.path.join(dirpath, f), "rb") as fh:
+                        h.update(f.encode() + fh.read())
+        _CODE.append(h.hexdigest())
+    return _CODE[0]
+
+
 def cache_key(spec: RunSpec, model: dict, options: dict, stage: str) -> str:
-    """SHA-256 of the run's bytes, its reading options, the model, the stage's options and the
-    jaxdrift version: a result cached under this key is the result a new computation would give."""
+    """SHA-256 of the run's bytes, its reading options, the model, the stage's options, the
+    jaxdrift version and its source (:func:`code_digest`): a result cached under this key is the
+    result a new computation would give."""
     h = hashlib.sha256()
     try:
         h.update(sha256_file(spec.path).encode())
     except OSError as e:
         h.update(f"unreadable:{e.strerror}".encode())  # the diagnosis reports the reading error
     h.update(json.dumps({"stage": stage, "reading": spec.reading(), "model": model, "options": options,
-                         "version": jaxdrift_version()}, sort_keys=True, default=str).encode())
+                         "version": jaxdrift_version(), "code": code_digest()}, sort_keys=True,
+                        default=str).encode())
     return h.hexdigest()
