@@ -103,13 +103,15 @@ def test_joint_fit_of_one_run_is_the_single_run_fit(tmp_path):
 # ------------------------------------------------------------------- a campaign on Dask
 
 
+@pytest.mark.slow
 def test_small_campaign_on_two_worker_processes(tmp_path):
     pytest.importorskip("distributed")
     from jaxdrift.campaign import campaign
 
     data = tmp_path / "data"
     # an inertia error: the cause a single run confuses with a delay
-    d = _design(data, 3, 6021, n_shared=1, durations=(5.0, 5.0), rates=(200,), params=("I",))
+    d = _design(data, 3, 6021, n_shared=1, durations=(5.0, 5.0), rates=(200,), params=("I",),
+                motion_noise_share=0.0)
     bad = data / "broken.csv"
     bad.write_text("t,f1,f2\n0,1,2\n0.005,nan,2\n")
     with open(data / "campaign.toml", "a") as fh:

@@ -33,9 +33,11 @@ CAMPAIGN_CHANNELS = ("beta", "beta_z3", "beta_s", "beta_z3_s", "beta_rate", "all
 
 
 def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0),
-                  rates=(200, 250, 300, 400, 500), effect_free: float = 0.3, params=None) -> dict:
+                  rates=(200, 250, 300, 400, 500), effect_free: float = 0.3, params=None,
+                  motion_noise_share: float = 0.3) -> dict:
     """The campaign's design: the vehicle, its shared errors, the loggers and the runs' cases.
-    ``params``: the parameters with shared errors (default: ``n_shared`` drawn from ``PARAMS``)."""
+    ``params``: the parameters with shared errors (default: ``n_shared`` drawn from ``PARAMS``);
+    ``motion_noise_share``: the probability that a run's motion channels carry sensor noise."""
     rng = np.random.default_rng(seed)
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     nominal = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
@@ -69,7 +71,7 @@ def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0)
         load = nominal["m3"] * gv.G / 2
         effects.append({"cause": "force_noise", "value": load * gv._loguniform(rng, 1e-4, 1e-3)})
         motion_noise = {}
-        if rng.random() < 0.3:
+        if rng.random() < motion_noise_share:
             lvl = gv._loguniform(rng, 1.0, 10.0)
             for c in gv.CHANNEL_SETS[chan]:
                 motion_noise[c] = lvl * {"beta": 3e-6, "z3": 3e-6, "s1": 3e-6, "s2": 3e-6, "beta_rate": 3e-5}[c]
