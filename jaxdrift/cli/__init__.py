@@ -21,6 +21,7 @@ _SUBCOMMANDS = [
     "jaxdrift.cli._diagnose",
     "jaxdrift.cli._attitude",
     "jaxdrift.cli._durability",
+    "jaxdrift.cli._campaign",
 ]
 
 
