@@ -1,5 +1,5 @@
-"""Benchmark: read a 5 million row x 6 column vehicle run (< 10 s and < 1 GB peak), and a
-30-minute PX4 ULog (about 450,000 gyro samples: < 10 s and < 1 GB peak).
+"""Benchmark: read a 5 million row x 6 column vehicle run (target: < 10 s and < 1 GB peak), and a
+30-minute PX4 ULog (about 450,000 gyro samples; target: < 10 s and < 1 GB peak).
 
 Writes a CSV of ``--rows`` rows (columns t, f1, f2, beta, beta_rate, z3 at 1 kHz, printed with
 shortest round-trip decimals; plausible signals, so that the plausibility checks pass), then reads

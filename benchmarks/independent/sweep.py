@@ -29,7 +29,7 @@ Examples::
 
     python benchmarks/independent/sweep.py --kind vehicle --n 20 --seed 1 --out /tmp/sw --jobs 2
     python benchmarks/independent/sweep.py --kind attitude --n 100 --seed 20261201 \\
-        --out docs/validation --prefix before- --jobs 1
+        --out docs/validation --prefix "$(git rev-parse --short HEAD)-" --jobs 1
 """
 
 from __future__ import annotations
@@ -493,7 +493,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, required=True, help="design seed")
     ap.add_argument("--out", required=True, help="folder for the summary (and cache/ unless --cache)")
     ap.add_argument("--cache", help="folder of per-run results (default OUT/cache/<kind>-<seed>)")
-    ap.add_argument("--prefix", default="", help="prefix of the summary files, e.g. 'before-'")
+    ap.add_argument("--prefix", default="", help="prefix of the summary files; the committed ones are named by the commit that diagnosed them, "
+                    "e.g. '20e4450-'")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--chunk", default="0/1", help="i/k: only the cases with index = i mod k")
     ap.add_argument("--report-only", action="store_true", help="summarise the cache, run nothing")

@@ -22,6 +22,7 @@ _SUBCOMMANDS = [
     "jaxdrift.cli._attitude",
     "jaxdrift.cli._durability",
     "jaxdrift.cli._topics",
+    "jaxdrift.cli._campaign",
 ]
 
 
