@@ -142,6 +142,13 @@ _EXPORTS.update({
     "pseudo_damage": ("durability._damage", "pseudo_damage"),
 })
 
+# --- campaigns: many runs of one vehicle, on Dask ---
+_EXPORTS.update({
+    "campaign": ("campaign._campaign", "campaign"),
+    "RunSpec": ("campaign._manifest", "RunSpec"),
+    "read_manifest": ("campaign._manifest", "read_manifest"),
+})
+
 # --- the engine against the machine's limit ---
 _EXPORTS.update({
     "use_all_cores": ("ensemble._devices", "use_all_cores"),
@@ -263,3 +270,6 @@ if TYPE_CHECKING:  # static analysers see the real imports
     from .durability._damage import rainflow_cycles
     from .durability._damage import pseudo_damage
     from .ensemble._devices import use_all_cores
+    from .campaign._campaign import campaign
+    from .campaign._manifest import RunSpec
+    from .campaign._manifest import read_manifest

@@ -2,7 +2,7 @@
 
 Layers (a module may import only the layers listed for its own; ``errors`` is open to all):
 
-    solvers   <- ensemble <- analysis <- diagnosis <- studies <- durability <- cli
+    solvers   <- ensemble <- analysis <- diagnosis <- studies <- durability <- campaign <- cli
     models    <-------------'            io ---'
     io (numpy only)
 
@@ -35,7 +35,9 @@ ALLOWED = {
     "studies": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis"},
     # durability reuses the paper study's simulations (studies): it sits between studies and cli
     "durability": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies"},
-    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability"},
+    # campaigns run the diagnosis and the durability of many runs on Dask: between durability and cli
+    "campaign": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability"},
+    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability", "campaign"},
 }
 # third-party packages a layer must not import
 FORBIDDEN_THIRD_PARTY = {
@@ -199,7 +201,7 @@ def test_checker_catches_a_broken_tree(tmp_path):
 
 @pytest.mark.parametrize("name", ["solve_ode", "monte_carlo", "HalfCarParams", "diagnose_vehicle_run",
                                   "run_attitude_diagnosis", "read_vehicle_run", "run_paper_study",
-                                  "durability_analysis"])
+                                  "durability_analysis", "campaign"])
 def test_public_names_resolve(name):
     import jaxdrift
 

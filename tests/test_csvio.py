@@ -145,7 +145,7 @@ def test_non_uniform_time(tmp_path, capsys):
     cols["t"][200:] += 0.001  # one step of 6 ms among 5 ms steps
     path = tmp_path / "run.csv"
     _write_csv(path, cols)
-    rc, err, report = _run_cli(tmp_path, capsys, path)
+    rc, err, report = _run_cli(tmp_path, capsys, path, extra=["--strict-time"])
     _assert_refused(rc, err, report, "run.csv", "line 202", "column t", "non-uniform")
 
 

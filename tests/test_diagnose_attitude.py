@@ -269,7 +269,10 @@ def test_refuses_non_uniform_time(good_run, tmp_path):
         return lines
 
     _rewrite(p, fn)
-    _refused(p, good_run["paths"]["sensors"], tmp_path, os.path.basename(p), "line 31", "column t", "non-uniform")
+    from jaxdrift.io import read_attitude_run
+
+    with pytest.raises(UsageError, match=r"line 31, column t: non-uniform"):
+        read_attitude_run(p, strict_time=True)
 
 
 def test_refuses_nan_row(good_run, tmp_path):

@@ -148,7 +148,7 @@ def test_real_jitter_is_still_refused(tmp_path):
         for i in range(len(t)):
             fh.write(f"{t[i]:.9f},{3825 + np.sin(i / 50):.6f},{3826 + np.cos(i / 50):.6f}\n")
     with pytest.raises(InputError, match=r"line 1502, column t: non-uniform"):
-        load_run(path)
+        load_run(path, strict_time=True)
 
 
 def test_fs_makes_the_time_base_and_is_checked(tmp_path, real_cols):
@@ -228,7 +228,7 @@ def _write_mf4(path, real_cols, fs_beta=100.0, unit_f="N"):
 def test_mf4_channels_resampled_to_a_stated_rate(tmp_path, real_cols):
     path = tmp_path / "log.mf4"
     _write_mf4(path, real_cols, unit_f="kN")
-    r = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch")
+    r = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch", strict_time=True)
     assert r.info["rate_hz"] == pytest.approx(200.0)
     assert any("resampled (linear) to a common time base of 200 Hz" in n for n in r.info["notes"])
     assert any("stored in kN" in n for n in r.info["notes"])
@@ -236,9 +236,29 @@ def test_mf4_channels_resampled_to_a_stated_rate(tmp_path, real_cols):
     np.testing.assert_allclose(r["f1"], real_cols["f1"][:n], rtol=1e-12)  # kN converted back
     # beta was logged at 100 Hz: linear interpolation of a smooth pitch signal
     assert np.max(np.abs(r["beta"] - real_cols["beta"][:n])) < 0.05 * np.ptp(real_cols["beta"])
-    r2 = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch", fs=100.0)
+    r2 = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch", fs=100.0, strict_time=True)
     assert r2.info["rate_hz"] == pytest.approx(100.0)
     assert any("Fz_FL, Fz_RL decimated" in n and "without an anti-alias filter" in n for n in r2.info["notes"])
+
+
+def test_mf4_channel_groups_follow_the_time_base_policy(tmp_path, real_cols):
+    """Without --strict-time each channel is read on its own times; the grid is f1's rate; a
+    faster channel is low-pass filtered before it is carried onto a coarser grid."""
+    from scipy.signal import butter, sosfiltfilt
+
+    path = tmp_path / "log.mf4"
+    _write_mf4(path, real_cols, unit_f="kN")
+    r = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch")
+    assert r.time_base["resampled"] and r.time_base["fs"] == pytest.approx(200.0)
+    assert r.time_base["channels"]["beta"]["fs"] == pytest.approx(100.0)
+    n = r.n
+    np.testing.assert_allclose(r["f1"], real_cols["f1"][:n], rtol=1e-10)  # on its own grid: unchanged (kN x 1e3)
+    r2 = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch", fs=100.0)
+    assert r2.time_base["filtered"] == ["f1", "f2"]
+    # the filter is scipy's Butterworth, order 4, zero phase, at 0.8 x the grid's Nyquist frequency
+    sos = butter(4, 0.8 * 50.0, fs=200.0, output="sos")
+    ref = np.interp(r2.t, real_cols["t"], sosfiltfilt(sos, real_cols["f1"]))
+    np.testing.assert_allclose(r2["f1"], ref, rtol=1e-9)
 
 
 def test_mf4_without_the_extra_says_how_to_install(tmp_path, real_cols, monkeypatch):
@@ -313,6 +333,18 @@ def test_cli_reading_options_reach_the_reader(tmp_path, capsys, real_cols, monke
     _write_mf4(mf4, real_cols)
     rc, err, report = _cli(tmp_path, capsys, mf4, "--map", "f1=Fz_FL,f2=Fz_RL,beta=Pitch")
     assert rc == 0, err
-    assert "resampled (linear) to a common time base of 200 Hz" in err
-    assert json.loads(report.read_text())["provenance"]["reading"]["format"] == "mf4"
-    np.testing.assert_allclose(seen[-1]["f2"], real_cols["f2"][:seen[-1].n], rtol=1e-12)
+    assert "time base 200 Hz from the median step" in err
+    reading = json.loads(report.read_text())["provenance"]["reading"]
+    assert reading["format"] == "mf4" and reading["time_base"]["channels"]["beta"]["fs"] == pytest.approx(100.0)
+    np.testing.assert_allclose(seen[-1]["f2"], real_cols["f2"][:seen[-1].n], rtol=1e-10)
+
+
+def test_mf4_slower_motion_channel_kept_at_its_own_times(tmp_path, real_cols):
+    path = tmp_path / "log.mf4"
+    _write_mf4(path, real_cols)
+    r = load_run(path, map="f1=Fz_FL,f2=Fz_RL,beta=Pitch")
+    tb_, vb = r.references["beta"]
+    tb_ref = np.arange(real_cols["t"][0], real_cols["t"][-1] + 1e-12, 1 / 100.0)
+    np.testing.assert_allclose(tb_, tb_ref[(tb_ref >= r.t[0]) & (tb_ref <= r.t[-1])], atol=1e-12)
+    np.testing.assert_allclose(vb, np.interp(tb_, real_cols["t"], real_cols["beta"]), atol=1e-12)
+    assert "f2" not in r.references  # as fast as the grid: on the grid only

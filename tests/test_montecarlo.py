@@ -273,9 +273,9 @@ json.dump(dict(n_devices=r.n_devices, mean=r.mean.tolist(), var=r.var.tolist(),
 """
 
 
-@pytest.mark.slow
 def test_two_processes_with_jax_distributed(tmp_path):
-    """The multi-host path: two processes on this machine joined by jax.distributed."""
+    """The multi-host path: two processes on this machine joined by jax.distributed give the
+    one-process statistics (the one-process run overlaps the two processes' start-up)."""
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
@@ -286,10 +286,15 @@ def test_two_processes_with_jax_distributed(tmp_path):
     procs = [subprocess.Popen([sys.executable, "-c", code, str(pid)], env=env,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
              for pid in (0, 1)]
-    for p in procs:
-        _, err = p.communicate(timeout=300)
-        assert p.returncode == 0, err[-3000:]
-    here = run(N_INV, chunk_size=16, **inv_kw())
+    try:
+        here = run(N_INV, chunk_size=16, **inv_kw())
+        for p in procs:
+            _, err = p.communicate(timeout=300)
+            assert p.returncode == 0, err[-3000:]
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
     for pid in (0, 1):
         out = json.loads(Path(path + str(pid)).read_text())
         assert out["n_devices"] == 2

@@ -21,6 +21,8 @@ _SUBCOMMANDS = [
     "jaxdrift.cli._diagnose",
     "jaxdrift.cli._attitude",
     "jaxdrift.cli._durability",
+    "jaxdrift.cli._topics",
+    "jaxdrift.cli._campaign",
 ]
 
 

@@ -71,23 +71,29 @@ def route_warnings() -> None:
 
 
 def add_run_options(p) -> None:
-    """--map, --units, --fs, --force for every command that reads a measured run."""
+    """--map, --units, --fs, --strict-time, --force for every command that reads a measured run."""
     g = p.add_argument_group("reading the run (docs/measured-data.md, 'Reading options')")
     g.add_argument("--map", metavar="NAME=COLUMN,...",
                    help="read the contract's columns from other file columns, e.g. f1=Fz_FL,f2=Fz_RL "
-                        "(MF4: channel names)")
+                        "(MF4: channel names; ULog: TOPIC:INSTANCE.FIELD, e.g. wx=sensor_gyro:1.x; "
+                        "ROS bags: TOPIC.FIELD, e.g. wx=/imu/data.angular_velocity.x; `jaxdrift topics LOG` lists them)")
     g.add_argument("--units", metavar="NAME=UNIT,...",
                    help="units of the file's columns, converted to SI on reading, e.g. f1=kN,f2=kN,t=ms,beta=deg")
     g.add_argument("--fs", type=float, metavar="HZ",
                    help="sample rate [Hz]: checked against t; makes the time base when the file has no t; "
-                        "MF4: the rate the channels are resampled to (default: the highest channel rate)")
+                        "MF4, ULog, bags: the grid rate (default: that of f1, or wx for attitude runs; a faster "
+                        "channel is low-pass filtered first)")
+    g.add_argument("--strict-time", action="store_true",
+                   help="refuse a time column that is not uniform (jitter over 1e-6 of the step, gaps) "
+                        "instead of resampling it onto a uniform grid (docs/measured-data.md, 'Time base')")
     g.add_argument("--force", action="store_true",
                    help="go on when the plausibility checks fail (units, dead channels, glitches): "
                         "they become warnings")
 
 
 def run_options(args) -> dict:
-    return {"map": args.map, "units": args.units, "fs": args.fs, "force": args.force}
+    return {"map": args.map, "units": args.units, "fs": args.fs, "force": args.force,
+            "strict_time": bool(getattr(args, "strict_time", False))}
 
 
 # ----------------------------------------------------------------------------------- Ctrl-C

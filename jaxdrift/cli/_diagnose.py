@@ -21,8 +21,12 @@ docs/diagnosis.md.
 
 A vehicle run (columns t, f1, f2 and optionally beta, beta_rate, z3, s1, s2) is compared with the
 half-car MODEL.json (default: the seed's table). An attitude run (a header with wx) is diagnosed
-against SENSORS.json (accelerometer positions). RUN may be CSV, Parquet (.parquet) or MDF4 (.mf4,
-needs `pip install jaxdrift[mdf]`); --map and --units read other column names and units. The run
+against SENSORS.json (accelerometer positions). RUN may be CSV, Parquet (.parquet), MDF4 (.mf4,
+needs `pip install jaxdrift[mdf]`), a PX4 ULog (.ulg, `pip install jaxdrift[ulog]`) or a ROS bag
+(.bag, a ROS 2 bag folder, .db3, .mcap; `pip install jaxdrift[ros]`), read as an attitude run;
+`jaxdrift topics LOG` lists a log's topics. --map and --units read other column names and units.
+Jittered time, gaps and channels at different rates are resampled onto a uniform grid (never
+across a gap; a reference stays on its own times); --strict-time refuses them instead. The run
 is checked for plausibility (units, dead channels, glitches) before anything is computed.
 
 exit codes: 0 report written, 2 bad input or unwritable output (nothing written),
@@ -56,8 +60,12 @@ def add_parser(subparsers) -> None:
     p.set_defaults(func=run_diagnose)
 
 
-def _kind(header, mapping_text) -> str:
+def _kind(header, mapping_text, path=None) -> str:
+    from ..io._logs import is_log
     from ..io._options import parse_map
+
+    if path is not None and is_log(path):
+        return "attitude"  # a logger file holds the rates (and the attitude) of a body
 
     mapped = parse_map(mapping_text) if mapping_text else {}
     return "attitude" if ("wx" in header or "wx" in mapped) else "vehicle"
@@ -75,7 +83,7 @@ def run_diagnose(args) -> int:
         raise UsageError(f"--series {args.series}: the name must end in .csv or .parquet")
     check_outputs([("--json", args.json, "file"), ("--series", args.series, "file"), ("--plots", args.plots, "dir")],
                   [args.run, args.model, args.sensors])
-    kind = _kind(read_header(args.run), args.map)
+    kind = _kind(read_header(args.run), args.map, args.run)
     opts = c.run_options(args)
     if kind == "attitude":
         if args.model:
@@ -85,7 +93,7 @@ def run_diagnose(args) -> int:
         from ..diagnosis.attitude._diagnose import read_sensors
         from ..io._attitude_files import read_attitude_run
 
-        run = read_attitude_run(args.run, checks=True, **opts)
+        run = _longest_segment_unless_joint(read_attitude_run(args.run, checks=True, **opts), c)
         for w in run["warnings"]:
             c.warn(w)
         for n in run["info"]["notes"]:
@@ -175,6 +183,28 @@ def run_diagnose(args) -> int:
     bar.close()
     c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))
     return 0
+
+
+def _longest_segment_unless_joint(run: dict, c) -> dict:
+    """An attitude run split by gaps (NaN rows between its segments) goes to the diagnosis whole
+    where the diagnosis analyses segments jointly (``SEGMENTS_JOINT`` in
+    ``jaxdrift.diagnosis.attitude._pipeline``); otherwise its longest segment does, with a warning
+    naming what is left out (never NaN rows into a diagnosis that assumes finite rates)."""
+    from ..diagnosis.attitude import _pipeline
+    from ..io import attitude_segments
+
+    segs = run.get("time_base", {}).get("segments") or [[0, len(run["t"])]]
+    if getattr(_pipeline, "SEGMENTS_JOINT", False) or segs == [[0, len(run["t"])]]:
+        return run
+    parts = attitude_segments(run)
+    best = max(parts, key=lambda p: len(p["t"]))
+    out = dict(run)
+    out.update({k: best[k] for k in ("t", "w", "q_ref", "acc")})
+    out["time_base"] = {**run["time_base"], "analysed_segment": list(best["rows"])}
+    i0, i1 = best["rows"]
+    c.warn(f"{run['path']}: {len(segs)} segments split by gaps; the attitude diagnosis analyses the longest, "
+           f"{run['t'][i0]:.6g} .. {run['t'][i1 - 1]:.6g} s ({i1 - i0} of {sum(b - a for a, b in segs)} rows)")
+    return out
 
 
 class _BarLog(list):

@@ -1,7 +1,9 @@
 """Reading and writing measured runs and model files (numpy and pyarrow; no JAX).
 
 :func:`load_run` is the one reader for every kind of run (vehicle, attitude, durability) and
-format (CSV, Parquet, MDF4); :mod:`._outputs` the one way results are written.
+format (CSV, Parquet, MDF4, PX4 ULog, ROS bags), with one time-base policy (:mod:`._timebase`:
+jitter and gaps measured, resampling inside segments, references on their own times);
+:mod:`._outputs` the one way results are written.
 """
 
 from __future__ import annotations
@@ -32,11 +34,16 @@ from ._outputs import (
 )
 from ._provenance import provenance as provenance
 from ._attitude_files import (
+    attitude_segments as attitude_segments,
     read_attitude_run as read_attitude_run,
     read_sensors as read_sensors,
 )
+from ._export import export_recorded_csv as export_recorded_csv
+from ._logs import list_topics as list_topics, read_log as read_log
+from ._timebase import GAP_FACTOR as GAP_FACTOR
 
-__all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'InputError', 'MIN_DURATION_S', 'MIN_SAMPLES',
-           'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
-           'check_outputs', 'load_run', 'provenance', 'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
+__all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'GAP_FACTOR', 'InputError', 'MIN_DURATION_S',
+           'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
+           'attitude_segments', 'check_outputs', 'export_recorded_csv', 'list_topics', 'load_run', 'provenance', 'read_log',
+           'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
            'write_json', 'write_report', 'check_report_finite', 'write_vehicle_run']

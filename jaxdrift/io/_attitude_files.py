@@ -17,8 +17,9 @@ import numpy as np
 from ..errors import InputError, UsageError
 from ._runs import load_run
 from ._table import _printed_digits, read_header_any
+from ._timebase import segment_arrays
 
-__all__ = ["read_attitude_run", "read_sensors", "RATE_COLUMNS", "QUATERNION_COLUMNS"]
+__all__ = ["read_attitude_run", "attitude_segments", "read_sensors", "RATE_COLUMNS", "QUATERNION_COLUMNS"]
 
 CHANNELS = ("wx", "wy", "wz")
 Q_COLS = ("qw", "qx", "qy", "qz")
@@ -31,24 +32,41 @@ def _usage_error(msg):
     return UsageError(msg)
 
 
-def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, checks=False):  # noqa: A002
-    """Read and validate an attitude run (CSV, Parquet or MF4) through the one reader
-    (:func:`jaxdrift.io.load_run`, the same rules and messages as vehicle runs), plus what only
-    attitude runs have: a reference quaternion given per row (all four cells or none) of norm
-    close to 1. Raises UsageError on bad input.
+def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, checks=False,  # noqa: A002
+                      strict_time=False):
+    """Read and validate an attitude run (CSV, Parquet, MF4, PX4 ULog or ROS bag) through the one
+    reader (:func:`jaxdrift.io.load_run`, the same rules and messages as vehicle runs), plus what
+    only attitude runs have: a reference quaternion (all four cells or none) of norm close to 1.
+    Raises UsageError on bad input.
 
     Returns a dict: ``path``, ``t`` (n,), ``dt``, ``w`` (n, 3), ``q_ref`` (n, 4, NaN rows where no
     reference; None without), ``acc`` (n, N, 3) or None, ``extra_columns``, ``quantisation`` and
     ``acc_quantisation`` (RMS rounding error of the rate and accelerometer cells as written,
-    sampled from both ends of a CSV file), ``warnings``, ``info`` (how the run was read).
+    sampled from both ends of a CSV file), ``warnings``, ``info`` (how the run was read), and the
+    time base (docs/measured-data.md, "Time base"):
+
+    - ``time_base``: ``nominal_dt``, ``fs``, ``jitter_std_rel``, ``jitter_max_rel``, ``gaps``
+      (``[{"t_start", "t_end", "duration_s", "channels"}]``), ``segments`` (``[i0, i1)`` row
+      ranges of the grid), ``resampled``, ``method``, ``noise_variance_factor``, ...;
+    - ``t`` is one uniform grid over all segments; rows in a gap have NaN in ``w`` (and ``acc``):
+      :func:`attitude_segments` yields each segment's arrays, all finite;
+    - ``q_ref_t`` (m,) and ``q_ref_q`` (m, 4): the reference at its own times (None without);
+      ``q_ref`` places each sample on the nearest grid row (NaN elsewhere).
+    - ``w_recorded_t`` (k,) and ``w_recorded`` (k, 3): the rates as recorded, before resampling
+      (where the three share their times; None for a run used as it is: then ``t``, ``w``).
     """
     try:
-        run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks)
+        run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks,
+                       strict_time=strict_time)
     except InputError as e:
         raise _usage_error(str(e)) from None
     ch = run.channels
     where = _where(run)
     w = np.column_stack([ch[c] for c in CHANNELS])
+    q_ref_t = q_ref_q = None
+    if "q" in run.references and len(run.references["q"][0]) and run.time_base.get("resampled"):
+        # a resampled run's rows are no file lines: its reference is checked sample by sample
+        q_ref_t, q_ref_q = _exact_reference(run, where)
     q_ref = None
     if all(c in ch for c in Q_COLS):
         q_ref = np.column_stack([ch[c] for c in Q_COLS])
@@ -66,13 +84,15 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
             raise _usage_error(f"{where(i, None)}, columns qw..qz: quaternion norm {norms[i]:.6g} is far from 1 "
                                f"(tolerance {QUAT_NORM_TOL:g})")
         q_ref = np.where(have[:, None], q_ref / norms[:, None], np.nan) if have.any() else None
+    if q_ref_t is None and "q" in run.references and len(run.references["q"][0]):
+        q_ref_t, q_ref_q = _exact_reference(run, where)  # (checked per line above)
     k, acc = 1, []
     while f"a{k}x" in ch:
         acc.append(np.column_stack([ch[f"a{k}{a}"] for a in "xyz"]))
         k += 1
     acc = np.stack(acc, axis=1) if acc else None  # (n, N, 3)
     used = set(run.info["columns"].values())
-    header = read_header_any(path)
+    header = [] if run.info["format"] in ("ulog", "bag") else read_header_any(path)
     extra = [c for c in header if c not in used]
     # the rounding of the rate (and accelerometer) columns as written, to tell noise from
     # rounding: the RMS rounding error sqrt(mean(step^2) / 12) of the cells' last digits
@@ -80,7 +100,38 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     return {"path": path, "t": run.t, "dt": run.dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra,
             "quantisation": _text_rounding(path, run.info, list(CHANNELS)),
             "acc_quantisation": _text_rounding(path, run.info, acc_cols),
-            "warnings": run.warnings, "info": run.info}
+            "warnings": run.warnings, "info": run.info, "time_base": run.time_base,
+            "q_ref_t": q_ref_t, "q_ref_q": q_ref_q,
+            "w_recorded_t": run.references["w"][0] if "w" in run.references else None,
+            "w_recorded": run.references["w"][1] if "w" in run.references else None}
+
+
+def _exact_reference(run, where):
+    """The reference samples at their own times, normalised (norm checked as on the grid)."""
+    tq, q = run.references["q"]
+    norms = np.linalg.norm(q, axis=1)
+    bad = np.abs(norms - 1.0) > QUAT_NORM_TOL
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise _usage_error(f"{os.path.basename(str(run.path))}, reference sample {i + 1} (t = {tq[i]:.6f} s), "
+                           f"columns qw..qz: quaternion norm {norms[i]:.6g} is far from 1 (tolerance {QUAT_NORM_TOL:g})")
+    return np.asarray(tq, float), q / norms[:, None]
+
+
+def attitude_segments(run: dict) -> list[dict]:
+    """Each segment of an attitude run (the dict of :func:`read_attitude_run`) as its own run:
+    dicts with ``t``, ``dt``, ``w``, ``q_ref``, ``acc`` restricted to the segment (``w`` and
+    ``acc`` finite), ``rows`` (``(i0, i1)`` on the grid), and ``q_ref_t``, ``q_ref_q``: the
+    reference samples whose times fall inside the segment (within half a step)."""
+    out = segment_arrays(run)
+    for seg in out:
+        if run.get("q_ref_t") is None:
+            seg["q_ref_t"] = seg["q_ref_q"] = None
+            continue
+        t = seg["t"]
+        m = (run["q_ref_t"] >= t[0] - 0.5 * run["dt"]) & (run["q_ref_t"] <= t[-1] + 0.5 * run["dt"])
+        seg["q_ref_t"], seg["q_ref_q"] = run["q_ref_t"][m], run["q_ref_q"][m]
+    return out
 
 
 def _written_rounding_rms(lines, columns):

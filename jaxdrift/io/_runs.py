@@ -21,7 +21,10 @@ from ..errors import InputError
 from ._model import DEFAULT_MODEL, DEFAULT_MODEL_LABEL
 from ._options import parse_map, parse_units, quantity_of, UNITS
 from ._plausible import plausibility_problems
-from ._table import Columns, file_label, read_columns, read_header_any
+from ._logs import LOG_FORMATS
+from ._runs_time import REFERENCE_COLUMNS, _reference, apply_policy
+from ._table import Columns, _open_check, detect_format, file_label, read_columns, read_header_any
+from ._timebase import uniform_time_base
 
 __all__ = ["VehicleRun", "AttitudeRun", "KINDS", "load_run", "VEHICLE_REQUIRED", "VEHICLE_OPTIONAL",
            "ATTITUDE_REQUIRED", "ATTITUDE_OPTIONAL", "MIN_SAMPLES", "MIN_DURATION_S", "JITTER_TOL"]
@@ -56,6 +59,11 @@ class VehicleRun:
     channels: dict[str, np.ndarray]
     warnings: tuple[str, ...] = ()
     info: dict = dataclasses.field(default_factory=dict, compare=False)
+    #: how the time base was made (docs/measured-data.md, "Time base"): nominal_dt, fs, jitter,
+    #: gaps, segments (grid row ranges), resampled, method, ...; also in ``info["time_base"]``
+    time_base: dict = dataclasses.field(default_factory=dict, compare=False)
+    #: channels kept on their own times: ``{"q": (t (m,), q (m, 4))}`` for an attitude reference
+    references: dict = dataclasses.field(default_factory=dict, compare=False)
 
     @property
     def dt(self) -> float:
@@ -116,8 +124,7 @@ def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
     return warnings, close
 
 
-def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, kind: str):
-    """Order, uniform step within JITTER_TOL and the printed resolution; returns (t, note)."""
+def _check_order(cols: Columns, t: np.ndarray, kind: str) -> None:
     fname = file_label(cols.path)
     n = len(t)
     min_n = MIN_ATTITUDE_ROWS if kind == "attitude" else MIN_SAMPLES
@@ -129,8 +136,27 @@ def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, 
         i = int(bad[0]) + 1
         raise InputError(f"{cols.where(i, 't')}: time not strictly increasing "
                          f"(t = {float(t[i])!r} after {float(t[i - 1])!r})")
-    step = 1.0 / fs if fs else float(np.median(d))  # the nominal step; one odd step must not move it
-    tol = JITTER_TOL * step + quantum + 4 * np.finfo(float).eps * float(np.max(np.abs(t[[0, -1]])))
+
+
+def _step_tolerance(t: np.ndarray, quantum: float, fs: float | None) -> tuple[float, float]:
+    """(nominal step, allowed deviation per step) of the strict check."""
+    step = 1.0 / fs if fs else float(np.median(np.diff(t)))  # one odd step must not move it
+    return step, JITTER_TOL * step + quantum + 4 * np.finfo(float).eps * float(np.max(np.abs(t[[0, -1]])))
+
+
+def _is_uniform(t: np.ndarray, quantum: float, fs: float | None) -> bool:
+    step, tol = _step_tolerance(t, quantum, fs)
+    return bool(np.all(np.abs(np.diff(t) - step) <= tol))
+
+
+def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, kind: str):
+    """Order, uniform step within JITTER_TOL and the printed resolution (the strict check and
+    the check of runs already uniform); returns (t, note)."""
+    fname = file_label(cols.path)
+    _check_order(cols, t, kind)
+    n = len(t)
+    d = np.diff(t)
+    step, tol = _step_tolerance(t, quantum, fs)
     dev = np.abs(d - step)
     bad = np.flatnonzero(dev > tol)
     note = None
@@ -142,7 +168,9 @@ def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, 
                              f"gives {step:.9g} s")
         raise InputError(
             f"{cols.where(i, 't')}: non-uniform sampling (step {float(d[i - 1]):.9g} s where the others "
-            f"are {step:.9g} s; relative deviation {float(dev[i - 1] / step):.2g} > {JITTER_TOL:g}{res})")
+            f"are {step:.9g} s; relative deviation {float(dev[i - 1] / step):.2g} > {JITTER_TOL:g}{res}; "
+            f"--strict-time refuses it: without that option the run is resampled, see "
+            f"docs/measured-data.md, 'Time base')")
     if np.max(dev) > JITTER_TOL * step:
         # uniform within the printed resolution only: the exact grid is the run's time base
         # least-squares line through (k, t_k): the rounding errors average out
@@ -153,13 +181,18 @@ def _check_time(cols: Columns, t: np.ndarray, quantum: float, fs: float | None, 
         t = tbar + kc * dt
         note = (f"{fname}: column t is printed with a resolution of {quantum:.3g} s; the run uses "
                 f"the uniform grid t0 + k dt with dt = {dt:.12g} s")
-    duration = t[-1] - t[0]
+    _check_size(fname, t, kind)
+    return t, note
+
+
+def _check_size(fname: str, t: np.ndarray, kind: str, what: str = "run") -> None:
+    n = len(t)
+    duration = t[-1] - t[0] if n else 0.0
     if kind != "attitude" and (n < MIN_SAMPLES or duration < MIN_DURATION_S):
-        raise InputError(f"{fname}: run too short to say anything ({n} samples over {duration:.6g} s; "
+        raise InputError(f"{fname}: {what} too short to say anything ({n} samples over {duration:.6g} s; "
                          f"need at least {MIN_SAMPLES} samples and {MIN_DURATION_S:g} s)")
     if kind == "attitude" and n < MIN_ATTITUDE_ROWS:
         raise InputError(f"{fname}: only {n} data rows; an attitude run needs at least {MIN_ATTITUDE_ROWS}")
-    return t, note
 
 
 def _check_cells(cols: Columns, name: str, col: str, v: np.ndarray, allow_empty: bool) -> None:
@@ -200,14 +233,18 @@ def _attitude_columns(fname, header) -> list[str]:
 
 
 def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | None = None,  # noqa: A002
-             force: bool = False, model: dict | None = None, checks: bool = True) -> VehicleRun:
+             force: bool = False, model: dict | None = None, checks: bool = True,
+             strict_time: bool = False) -> VehicleRun:
     """Read, validate and (``checks``) plausibility-check a run file of any supported format.
 
     ``kind``: ``vehicle``, ``durability`` (the vehicle columns) or ``attitude``. ``map``:
-    ``"f1=Fz_FL,..."`` or a dict, contract name -> file column. ``units``: ``"f1=kN,t=ms"`` or a
-    dict. ``fs``: the sample rate [Hz] (checked against ``t``; with no ``t`` column it makes the
-    time base; for MDF4 the rate to resample to). ``force``: plausibility problems become
-    warnings. ``model``: the vehicle model for the static-load check (default: the seed's table).
+    ``"f1=Fz_FL,..."`` or a dict, contract name -> file column (a log's channel
+    ``TOPIC:INSTANCE.FIELD``). ``units``: ``"f1=kN,t=ms"`` or a dict. ``fs``: the sample rate
+    [Hz] (checked against ``t``; with no ``t`` column it makes the time base; for channels on
+    their own times the grid rate). ``force``: plausibility problems become warnings. ``model``:
+    the vehicle model for the static-load check (default: the seed's table). ``strict_time``:
+    refuse a time column that is not uniform (else the time-base policy resamples it,
+    docs/measured-data.md "Time base"; ``run.time_base`` says how).
     Returns a :class:`VehicleRun` (:class:`AttitudeRun` for attitude runs); raises InputError.
     """
     if kind not in KINDS:
@@ -216,8 +253,14 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
         raise InputError(f"--fs must be a positive rate in Hz, got {fs!r}")
     req, opt = KINDS[kind]
     fname = file_label(path)
-    header = read_header_any(path)
+    fmt = detect_format(path)
     known_names = tuple(req) + tuple(opt)
+    notes, optional = [], ()
+    if fmt in LOG_FORMATS:
+        _open_check(path)
+        map, header, notes, optional = _log_mapping(path, kind, map, known_names)  # noqa: A001
+    else:
+        header = read_header_any(path)
     mapping = parse_map(map, known_names)
     factors = parse_units(units)
     for col, file_col in mapping.items():
@@ -228,8 +271,8 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     to_contract = {v: k for k, v in mapping.items()}
     shadowed = [h for h in header if h in mapping and h not in to_contract]
     canon = [to_contract.get(h, h) for h in header if h not in shadowed]
-    fmt_mf4 = str(path).lower().endswith((".mf4", ".mdf"))
-    synth_t = "t" not in canon and (fs is not None or fmt_mf4)
+    own_times = fmt in LOG_FORMATS or (fmt == "mf4" and not strict_time)
+    synth_t = "t" not in canon and (fs is not None or fmt in ("mf4",) + LOG_FORMATS)
     if synth_t:
         canon = ["t"] + canon
     warnings, close = _check_names(fname, canon, kind)
@@ -243,37 +286,38 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
             raise InputError(f"--units {c}=...: the run has no column {c!r}")
     file_of = {c: mapping.get(c, c) for c in used}
     want = [file_of[c] for c in used if not (c == "t" and synth_t)]
-    cols = read_columns(path, want, fs=fs, time_col=("t" if synth_t and fmt_mf4 else None))
+    cols = read_columns(path, want, fs=fs, time_col=("t" if synth_t and fmt == "mf4" else None),
+                        resample=not own_times, optional=optional)
+    if optional:  # a default reference the log does not have: no reference
+        used = [c for c in used if c == "t" or file_of[c] in cols.data]
     data = {c: cols.data[file_of[c]] for c in used if file_of[c] in cols.data}
-    if synth_t and "t" not in data:
+    if cols.times:
+        cols.times = {c: cols.times[file_of[c]] for c in used if file_of[c] in cols.times}
+    elif synth_t and "t" not in data:
         data["t"] = np.arange(cols.n) / fs
     cols.empty = {c: cols.empty.get(file_of[c], -1) for c in used}
-    notes = list(cols.notes)
-    converted = {}
-    for c in used:
-        f = factors.get(c)
-        stored = cols.units.get(file_of[c], "")
-        if f is None and stored and quantity_of(c):
-            table = UNITS[quantity_of(c)]
-            if stored in table and table[stored] != 1.0:
-                f = table[stored]
-                notes.append(f"{fname}: {c} stored in {stored}, converted to SI")
-        if f is not None and f != 1.0:
-            data[c] = data[c] * f
-            converted[c] = f
+    notes += list(cols.notes)
+    converted = _convert_units(fname, used, factors, cols, file_of, data, notes)
     q_t = cols.quantum.get(file_of["t"], 0.0) * converted.get("t", 1.0)
     for c in used:
-        _check_cells(cols, c, c, data[c], allow_empty=(kind == "attitude" and c in ATTITUDE_OPTIONAL))
-    t, tnote = _check_time(cols, data.pop("t"), q_t, fs, kind)
-    if tnote:
-        notes.append(tnote)
+        if c in data:
+            _check_cells(cols, c, c, data[c], allow_empty=(kind == "attitude" and c in ATTITUDE_OPTIONAL))
+    t, data, tb, refs, where = _time_base(cols, data, q_t, fs, kind, strict_time, notes)
     if kind != "attitude" and ("s1" in data) != ("s2" in data):
         warnings.append(f"{fname}: only one of s1, s2 given; it is used alone")
     problems = list(close)
     if checks:
+        valid = np.ones(len(t), bool)
+        for c, v in data.items():
+            if c not in ATTITUDE_OPTIONAL:
+                valid &= np.isfinite(v)
+        rows = np.flatnonzero(valid) if not valid.all() else None  # (no copy of a complete run)
+        t_ok, data_ok = (t, data) if rows is None else (t[rows], {c: v[rows] for c, v in data.items()})
         model_label = DEFAULT_MODEL_LABEL if model is None else "the given model"
         problems += plausibility_problems(
-            kind, t, data, where=cols.where, name_of=lambda c: file_of.get(c, c),
+            kind, t_ok, data_ok,
+            where=where if rows is None else (lambda i, c=None: where(int(rows[i]), c)),
+            name_of=lambda c: file_of.get(c, c),
             model=dict(DEFAULT_MODEL if model is None else model), model_label=model_label,
             quantity_of=quantity_of)
     if problems and not force:
@@ -285,6 +329,86 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
             "notes": notes, "forced": bool(problems),
             "quantum": {c: cols.quantum.get(file_of[c], 0.0) * converted.get(c, 1.0) for c in used},
             "printed_steps": {c: (cols.steps[file_of[c]][0] * converted.get(c, 1.0) ** 2, cols.steps[file_of[c]][1])
-                              for c in used if file_of[c] in cols.steps}}
+                              for c in used if file_of[c] in cols.steps},
+            "time_base": tb}
+    if cols.meta:
+        info["log"] = cols.meta
     cls = AttitudeRun if kind == "attitude" else VehicleRun
-    return cls(path=str(path), t=t, channels=data, warnings=tuple(warnings), info=info)
+    return cls(path=str(path), t=t, channels=data, warnings=tuple(warnings), info=info, time_base=tb,
+               references=refs)
+
+
+def _convert_units(fname, used, factors, cols, file_of, data, notes) -> dict:
+    """--units and the units an MDF4 file stores, converted to SI in place; returns the factors."""
+    converted = {}
+    for c in used:
+        f = factors.get(c)
+        stored = cols.units.get(file_of[c], "")
+        if f is None and stored and quantity_of(c):
+            table = UNITS[quantity_of(c)]
+            if stored in table and table[stored] != 1.0:
+                f = table[stored]
+                notes.append(f"{fname}: {c} stored in {stored}, converted to SI")
+        if f is not None and f != 1.0:
+            if c in data:
+                data[c] = data[c] * f
+            converted[c] = f
+    if "t" in converted and cols.times:
+        cols.times = {c: v * converted["t"] for c, v in cols.times.items()}
+    return converted
+
+
+def _time_base(cols: Columns, data: dict, q_t: float, fs, kind: str, strict: bool, notes: list):
+    """The run's time base: (t, channels, time_base, references, where(row, col))."""
+    fname = file_label(cols.path)
+    t_raw = data.pop("t", None)
+    if cols.times and strict:
+        first = next(iter(cols.times.values()))
+        if any(len(v) != len(first) or not np.array_equal(v, first) for v in cols.times.values()):
+            raise InputError(f"{fname}: the channels are written at different times "
+                             f"({', '.join(f'{c}: {len(v)} samples' for c, v in cols.times.items())}); "
+                             f"--strict-time needs one time column (without it the run is resampled)")
+        t_raw, cols.times = first, {}
+    if not cols.times:
+        _check_order(cols, t_raw, kind)
+        if strict or _is_uniform(t_raw, q_t, fs):
+            t, tnote = _check_time(cols, t_raw, q_t, fs, kind)
+            if tnote:
+                notes.append(tnote)
+            refs = {}
+            if kind == "attitude" and "qw" in data:
+                refs = {"q": _reference(cols, data, lambda c: t, [c for c in REFERENCE_COLUMNS])}
+            return t, data, uniform_time_base(t), refs, cols.where
+    min_rows = MIN_ATTITUDE_ROWS if kind == "attitude" else MIN_SAMPLES
+    t, data, refs, tb, more = apply_policy(cols, data, t_raw, kind, fs, min_rows)
+    notes += more
+    valid = np.ones(len(t), bool)
+    for c, v in data.items():
+        if c not in ATTITUDE_OPTIONAL:
+            valid &= np.isfinite(v)
+    _check_size(fname, t[valid], kind, "the analysed segment" if kind != "attitude" else "run")
+
+    def where(i, col=None):
+        return f"{fname}, near t = {float(t[i]):.6f} s" + (f", column {col}" if col else "")
+
+    return t, data, tb, refs, where
+
+
+def _log_mapping(path, kind, user_map, known) -> tuple[dict, list[str], list[str], tuple]:
+    """A logger file's contract columns: the defaults (ULog: sensor_combined.gyro_rad,
+    vehicle_attitude.q; a bag: its Imu topic) overridden by ``--map``; (map, header, notes,
+    the default reference channels, read only where the log has them)."""
+    from ._logs import canonical, default_map
+
+    fmt = detect_format(path)
+    user = parse_map(user_map, known)
+    user = {k: canonical(v, fmt) for k, v in user.items()}
+    need_default = fmt == "ulog" or any(c not in user for c in ATTITUDE_REQUIRED[1:])
+    defaults, notes = default_map(path, kind) if need_default else ({}, [])
+    if kind != "attitude":
+        default_map(path, kind)  # the refusal: a logger file is an attitude run
+    if any(c in user for c in ATTITUDE_OPTIONAL):
+        defaults = {k: v for k, v in defaults.items() if k not in ATTITUDE_OPTIONAL}
+    merged = {**defaults, **user}
+    optional = tuple(v for k, v in defaults.items() if k in ATTITUDE_OPTIONAL and k not in user)
+    return merged, list(merged.values()), notes, optional

@@ -23,7 +23,7 @@ from ..errors import InputError
 
 __all__ = ["Columns", "file_label", "read_header_any", "read_columns", "FORMATS"]
 
-FORMATS = ("csv", "parquet", "mf4")
+FORMATS = ("csv", "parquet", "mf4", "ulog", "bag")
 #: a number as pyarrow accepts it for a float64 column (plus surrounding blanks)
 _NUMBER = r"^\s*[-+]?((\d+\.?\d*|\.\d+)([eE][-+]?\d+)?|nan|NaN|NAN|inf|Inf|INF|infinity|Infinity)\s*$"
 _QUANTUM_BYTES = 1 << 18  # text read from each end of a CSV to find the printed resolution
@@ -51,6 +51,10 @@ class Columns:
     rate_hz: float | None = None  # MDF4: the common rate the channels were resampled to
     units: dict[str, str] = dataclasses.field(default_factory=dict)  # MDF4: units stored per channel
     steps: dict[str, tuple] = dataclasses.field(default_factory=dict)  # CSV: (sum of step^2, cells) sampled
+    #: multi-rate sources (MDF4, ULog, bags): each channel's own sample times [s]; ``data[name]``
+    #: then holds that channel's samples as recorded (the time-base policy makes the grid)
+    times: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
+    meta: dict = dataclasses.field(default_factory=dict)  # what a logger file says about itself
 
     @property
     def n(self) -> int:
@@ -64,6 +68,11 @@ class Columns:
 
 
 def detect_format(path) -> str:
+    from ._logs import log_format
+
+    log = log_format(path)
+    if log:
+        return log
     ext = os.path.splitext(str(path))[1].lower()
     if ext in (".parquet", ".pq"):
         return "parquet"
@@ -75,8 +84,8 @@ def detect_format(path) -> str:
 def _open_check(path):
     if not os.path.exists(path):
         raise InputError(f"{path}: file not found")
-    if os.path.isdir(path):
-        raise InputError(f"{path}: is a directory, expected a run file (CSV, Parquet or MF4)")
+    if os.path.isdir(path) and detect_format(path) != "bag":
+        raise InputError(f"{path}: is a directory, expected a run file (CSV, Parquet, MF4, ULog, ROS bag) or a ROS 2 bag folder (with metadata.yaml)")
     if not os.access(path, os.R_OK):
         raise InputError(f"{path}: cannot read (permission denied)")
 
@@ -334,9 +343,10 @@ def _mdf_names(mdf) -> list[str]:
     return sorted(n for n in mdf.channels_db if not n.startswith("$"))
 
 
-def _read_mf4(path, want: list[str], fs: float | None, time_col: str | None) -> Columns:
-    """Channels ``want`` (``time_col`` is the master time, not a channel) resampled linearly to
-    one uniform time base: ``fs`` if given, else the highest rate among the channels."""
+def _read_mf4(path, want: list[str], fs: float | None, time_col: str | None, resample: bool = True) -> Columns:
+    """Channels ``want`` (``time_col`` is the master time, not a channel): with ``resample``
+    (``--strict-time``) interpolated linearly to one uniform time base (``fs`` if given, else the
+    highest rate among the channels); without, each on its own times (:attr:`Columns.times`)."""
     fname = file_label(path)
     mdf = _mdf_open(path)
     try:
@@ -361,6 +371,13 @@ def _read_mf4(path, want: list[str], fs: float | None, time_col: str | None) -> 
     if not sigs:
         raise InputError(f"{fname}: no channels selected")
     rates = {c: (len(ts) - 1) / (ts[-1] - ts[0]) for c, (ts, _, _) in sigs.items()}
+    if not resample:
+        src = ", ".join(f"{c} {rates[c]:.6g} Hz" for c in sigs)
+        return Columns(str(path), "mf4", list(sigs), {c: v for c, (_, v, _) in sigs.items()},
+                       {c: -1 for c in sigs}, 0, {c: 0.0 for c in sigs},
+                       [f"{fname}: channels read on their own times ({src})"],
+                       units={c: u for c, (_, _, u) in sigs.items()},
+                       times={c: ts for c, (ts, _, _) in sigs.items()})
     t0 = max(ts[0] for ts, _, _ in sigs.values())
     t1 = min(ts[-1] for ts, _, _ in sigs.values())
     if not t1 > t0:
@@ -392,6 +409,10 @@ def read_header_any(path, fmt: str | None = None) -> list[str]:
     fmt = fmt or detect_format(path)
     if fmt == "parquet":
         return _parquet_header(path)
+    if fmt in ("ulog", "bag"):
+        from ._logs import default_map
+
+        return sorted(set(default_map(path)[0].values()))
     if fmt == "mf4":
         mdf = _mdf_open(path)
         try:
@@ -402,13 +423,23 @@ def read_header_any(path, fmt: str | None = None) -> list[str]:
 
 
 def read_columns(path, want: list[str], *, fmt: str | None = None, fs: float | None = None,
-                 time_col: str | None = None) -> Columns:
-    """Read ``want`` (names as in the file) from a CSV, Parquet or MF4 run file."""
+                 time_col: str | None = None, resample: bool = True, optional=()) -> Columns:
+    """Read ``want`` (names as in the file) from a CSV, Parquet, MF4 run file or a logger file
+    (ULog, ROS bag: channels on their own times). ``resample``: MF4 channels onto one time base
+    at once (the ``--strict-time`` behaviour) rather than on their own times. ``optional``: log
+    channels left out (with a note) where the log does not have them."""
     _open_check(path)
     fmt = fmt or detect_format(path)
     if fmt == "parquet":
         return _read_parquet(path, want)
+    if fmt in ("ulog", "bag"):
+        from ._logs import read_log
+
+        series, notes, meta = read_log(path, [w for w in want if w != time_col], optional=optional)
+        return Columns(str(path), fmt, list(series), {c: v for c, (_, v) in series.items()},
+                       {c: -1 for c in series}, 0, {c: 0.0 for c in series}, notes,
+                       times={c: t for c, (t, _) in series.items()}, meta=meta)
     if fmt == "mf4":
-        return _read_mf4(path, want, fs, time_col)
+        return _read_mf4(path, want, fs, time_col, resample)
     return _read_csv(path, want)
 

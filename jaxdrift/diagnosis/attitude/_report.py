@@ -12,6 +12,7 @@ import os
 import numpy as np
 
 from ...io._outputs import check_report_finite
+from ...io._timebase import run_block
 from .._intervals import joint_intervals
 from ._common import CHANNELS, SCHEMA
 
@@ -48,7 +49,8 @@ def assemble_report(s):
             "units": {"N": "rad/sqrt(s)", "B": "rad/s", "K": "rad/s/sqrt(s)"},
         },
         "run": {"rows": int(n), "dt": float(dt), "duration_s": float(T), "reference_rows": s.n_ref,
-                "sensors": 0 if s.positions is None else int(s.positions.shape[0])},
+                "sensors": 0 if s.positions is None else int(s.positions.shape[0]),
+                "time_base": run_block(s.run.get("time_base"))},
     }
     check_report_finite(report)  # every attitude report, wherever it is made (CLI, API, tests, sweeps)
     return report

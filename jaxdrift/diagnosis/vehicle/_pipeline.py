@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
+from ...io._timebase import run_block
 from ._causes import FORCE_CHANNELS, _apply
 from ._confirm import confirm_by_resimulation, confirm_corrections, unconfirmed_findings
 from ._extend import resimulate
@@ -84,7 +85,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
                 "duration_s": float(run.t[-1] - run.t[0]),
-                "channels": sorted(run.channels), "residual_channels": prob.names},
+                "channels": sorted(run.channels), "residual_channels": prob.names,
+                "time_base": run_block(getattr(run, "time_base", None))},
         "notes": notes,
     }
     if plots_dir is not None:

@@ -466,12 +466,14 @@ def _tie_alternatives(prob: _Problem, fit: Fit, ties: list, alternatives: dict, 
             log.append(f"indistinguishable: {c_in.label} for {c_out.label}")
 
 
-def _select(prob: _Problem, max_causes: int = 3, log=None) -> Selection:
+def _select(prob: _Problem, max_causes: int = 3, log=None, candidates=None) -> Selection:
     """Which causes: forward selection, exchange, backward elimination, exact confounding, then
-    ranked by |z| (most significant first)."""
+    ranked by |z| (most significant first). ``candidates``: the causes to choose from (default:
+    every candidate of the run; a campaign passes the sensor effects only, its vehicle parameters
+    being fitted jointly over the runs)."""
     base = _gauss_newton(prob, [], [])
     dynamic = len(base.r) > 2
-    active, not_ident, Jc = _identifiable(prob, _candidates(prob.pipe))
+    active, not_ident, Jc = _identifiable(prob, _candidates(prob.pipe) if candidates is None else list(candidates))
     crit = scipy.stats.chi2.ppf(1 - ALPHA / max(len(active), 1), 1)
     fit, chosen, alternatives, path = _forward(prob, base, active, Jc, crit, max_causes, log)
     fit, cov, z, sigma2 = _backward(prob, fit, alternatives, crit, log)

@@ -1,0 +1,292 @@
+"""The joint diagnosis of a campaign: the vehicle's parameter errors fitted over all runs at once,
+each logger's sensor effects as nuisance parameters (``docs/campaign.md``).
+
+The residual problem of each run is the single-run one (:class:`~jaxdrift.diagnosis.vehicle.
+_problem._Problem`: the same weighted residual rows, instruments, sandwich covariance); the runs'
+rows are stacked. Per logger group the nuisance directions are projected out (``Z = S - N N^+ S``,
+computed on the workers, :func:`._tasks.blocks_task`), so the shared step and covariance need only
+the small sums ``A = sum Z^T Z``, ``b = sum Z^T r`` and ``M = sum sigma_i^2 meat_i(Z_i)``:
+``delta = -A^-1 b``, ``cov = A^-1 M A^-1``. Runs are independent, so their meats add.
+
+Selection is the single-run one lifted to the stack: forward steps by the linear score of each
+candidate, a joint Gauss-Newton refit, the Wald test at the single-run level (Bonferroni over the
+candidates), backward elimination. Then each run's sensor effects are chosen again by the
+single-run selection against the joint vehicle (``_tasks.reselect_task``), and the shared fit is
+repeated with them.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.stats
+
+from ..diagnosis.vehicle._causes import (ALPHA, FORCE_CHANNELS, Cause, _apply, _finding_for, _practical,
+                                         _theta_bounds)
+from ._executor import map_tasks
+from ._tasks import blocks_task, reselect_task
+
+__all__ = ["JointFit", "sensor_causes_of", "CONSISTENCY_LEVEL"]
+
+#: a parameter whose single-run estimates scatter beyond their intervals at this level is reported
+CONSISTENCY_LEVEL = 0.01
+SENSOR_KINDS = ("force_offset", "force_scale", "force_delay")
+
+
+def sensor_causes_of(report: dict) -> tuple[list[Cause], list[float]]:
+    """The sensor effects a single-run report names, as causes and starting theta."""
+    causes, theta = [], []
+    for f in report.get("findings", []):
+        if f.get("cause") not in SENSOR_KINDS or "channel" not in f:
+            continue
+        c = Cause(f["cause"], f["channel"])
+        if c in causes:
+            continue
+        est = float(f["estimate"])
+        causes.append(c)
+        theta.append(1.0 / est - 1.0 if c.kind == "force_scale" else est)
+    return causes, theta
+
+
+def _merge(cause_lists) -> tuple[list[Cause], list[float]]:
+    """One logger's sensor effects from its runs' (causes, theta): the union; the theta averaged.
+    An equal offset on both forces next to a channel offset becomes the two channel offsets."""
+    acc: dict = {}
+    for causes, theta in cause_lists:
+        for c, t in zip(causes, theta):
+            acc.setdefault(c, []).append(float(t))
+    both = Cause("force_offset", "both")
+    if both in acc and any(c.kind == "force_offset" and c != both for c in acc):
+        tb = float(np.mean(acc.pop(both)))
+        for ch in FORCE_CHANNELS:
+            c = Cause("force_offset", ch)
+            acc[c] = [t + tb for t in acc.get(c, [0.0])]
+    causes = sorted(acc, key=lambda c: (c.kind, c.target))
+    return causes, [float(np.mean(acc[c])) for c in causes]
+
+
+class JointFit:
+    """The campaign's joint fit over ``groups`` (lists of run specs sharing a logger) on a Dask
+    ``client``. ``start``: per group the (causes, theta) of its sensor effects to start from."""
+
+    def __init__(self, client, groups, model: dict, model_given: bool, candidates, start, *,
+                 progress: bool = True, max_shared: int = 6, log: list | None = None):
+        self.client, self.groups, self.model = client, groups, model
+        self.model_given = model_given
+        self.candidates = list(candidates)
+        self.nuis = [list(s[0]) for s in start]
+        self.theta_n = [np.asarray(s[1], float) for s in start]
+        self.progress, self.max_shared = progress, max_shared
+        self.log = log if log is not None else []
+        self.crit = scipy.stats.chi2.ppf(1 - ALPHA / max(len(self.candidates), 1), 1)
+        self.rounds = 0
+
+    # -- one round over all groups
+    def _blocks(self, shared, theta, final=False, screen=True):
+        """One round: every group's blocks at ``theta``; ``screen``: with the columns of the
+        candidates not chosen (for the next forward step)."""
+        extras = [c for c in self.candidates if c not in shared] if screen else []
+        outs = []
+        for g, out in enumerate(map_tasks(
+                self.client, _blocks_call, list(range(len(self.groups))), desc=f"joint fit, round {self.rounds + 1}",
+                progress=self.progress, groups=self.groups, model=self.model, model_given=self.model_given,
+                shared=list(shared), theta_shared=np.asarray(theta, float).tolist(), extras=extras,
+                nuis=self.nuis, theta_nuis=[t.tolist() for t in self.theta_n], final=final)):
+            self.theta_n[g] = np.asarray(out["theta_nuis"], float)
+            outs.append(out)
+        self.rounds += 1
+        order = list(shared) + extras
+        A = sum(r["A"] for o in outs for r in o["runs"])
+        b = sum(r["b"] for o in outs for r in o["runs"])
+        M = np.zeros_like(A)
+        p = len(shared)
+        for o, nuis in zip(outs, self.nuis):
+            for r in o["runs"]:
+                M = M + self.sigma2(r, p + len(nuis)) * r["M"]
+        if screen:
+            # candidates no run sees (tyre parameters without contact-point data): not screened again
+            d = np.diag(A)
+            seen = d > 1e-12 * max(float(np.max(d)) if d.size else 0.0, 1e-300)
+            self.candidates = [c for c in self.candidates if c in shared or seen[order.index(c)]]
+        return order, A, b, M, outs
+
+    @staticmethod
+    def sigma2(r: dict, p: int) -> float:
+        return r["rss"] / max(r["rows"] - p, 1)
+
+    def refit(self, shared, theta, iters: int = 6):
+        """Gauss-Newton over the shared parameters (the nuisance refitted inside each round),
+        until a step is below 5 % of every standard error; then one round at the result with the
+        screening columns."""
+        theta = np.asarray(theta, float)
+        for _ in range(iters if shared else 0):
+            order, A, b, M, outs = self._blocks(shared, theta, screen=False)
+            idx = list(range(len(shared)))
+            step = -np.linalg.lstsq(A[np.ix_(idx, idx)], b[idx], rcond=None)[0]
+            se = np.sqrt(np.maximum(np.diag(self.covariance((order, A, b, M, outs, theta), len(shared))), 0.0))
+            new = theta + step
+            for i, c in enumerate(shared):
+                lo, hi = _theta_bounds(c, None)
+                new[i] = min(max(new[i], lo), hi)
+            done = np.all(np.abs(new - theta) <= 0.05 * se)
+            theta = new
+            if done:
+                break
+        order, A, b, M, outs = self._blocks(shared, theta)
+        self.log.append(f"joint refit {[c.label for c in shared]}: round {self.rounds}")
+        return theta, (order, A, b, M, outs, theta.copy())
+    def covariance(self, state, k: int) -> np.ndarray:
+        _, A, _, M, _, _ = state
+        idx = list(range(k))
+        Ai = np.linalg.pinv(A[np.ix_(idx, idx)])
+        return Ai @ M[np.ix_(idx, idx)] @ Ai
+
+    def _passes(self, c, theta_c, var) -> bool:
+        lo, hi = _theta_bounds(c, None)
+        at_bound = theta_c <= lo + 1e-9 or theta_c >= hi - 1e-9
+        return (var > 0 and theta_c ** 2 / var >= self.crit and abs(theta_c) >= _practical(c, None)
+                and not at_bound)
+
+    def select(self, shared=(), theta=()):
+        """Forward selection of the shared parameters with joint refits, then backward elimination."""
+        shared, theta = list(shared), np.asarray(theta, float)
+        theta, state = self.refit(shared, theta)
+        while len(shared) < self.max_shared:
+            order, A, b, _, _, _ = state
+            k = len(shared)
+            idx0 = list(range(k))
+            base = float(b[idx0] @ np.linalg.lstsq(A[np.ix_(idx0, idx0)], b[idx0], rcond=None)[0]) if k else 0.0
+            scores = []
+            for j in range(k, len(order)):
+                S = idx0 + [j]
+                g = float(b[S] @ np.linalg.lstsq(A[np.ix_(S, S)], b[S], rcond=None)[0]) - base
+                scores.append((g, j))
+            if not scores:
+                break
+            scores.sort(reverse=True)
+            j = scores[0][1]
+            c = order[j]
+            # the linear Wald statistic first: a candidate far below the test is not refined
+            S = idx0 + [j]
+            Ai = np.linalg.pinv(A[np.ix_(S, S)])
+            t_lin = (-(Ai @ b[S]))[-1]
+            v_lin = (Ai @ state[3][np.ix_(S, S)] @ Ai)[-1, -1]
+            if not (v_lin > 0 and t_lin ** 2 / v_lin >= 0.25 * self.crit):
+                self.log.append(f"joint step {k + 1}: best candidate {c.label}, linear z2 "
+                                f"{t_lin ** 2 / v_lin if v_lin > 0 else 0:.3g}: none passes")
+                break
+            th_c, st_c = self.refit(shared + [c], np.append(theta, t_lin))
+            var = self.covariance(st_c, k + 1)[-1, -1]
+            self.log.append(f"joint step {k + 1}: {c.label} theta {th_c[-1]:.5g} z2 "
+                            f"{th_c[-1] ** 2 / var if var > 0 else 0:.3g} (crit {self.crit:.3g})")
+            if not self._passes(c, th_c[-1], var):
+                break
+            shared, theta, state = shared + [c], th_c, st_c
+        while shared:
+            cov = self.covariance(state, len(shared))
+            ok = [self._passes(c, theta[i], cov[i, i]) for i, c in enumerate(shared)]
+            if all(ok):
+                break
+            z2 = [theta[i] ** 2 / cov[i, i] if cov[i, i] > 0 else 0.0 for i in range(len(shared))]
+            drop = next((i for i, o in enumerate(ok) if not o and abs(theta[i]) < _practical(shared[i], None)),
+                        int(np.argmin(z2)))
+            self.log.append(f"joint: drop {shared[drop].label} (z2 {z2[drop]:.3g})")
+            keep = [i for i in range(len(shared)) if i != drop]
+            shared = [shared[i] for i in keep]
+            theta, state = self.refit(shared, theta[keep])
+        return shared, theta, state
+
+    def reselect(self, specs_by_group, shared, theta):
+        """Each run's sensor effects chosen again against the joint vehicle; per logger the union."""
+        p_joint, _ = _apply(self.model, shared, theta)
+        flat = [s for grp in specs_by_group for s in grp]
+        res = map_tasks(self.client, reselect_task, flat, desc="sensor effects against the joint vehicle",
+                        progress=self.progress, model=self.model, model_given=self.model_given,
+                        joint_model={k: float(v) for k, v in p_joint.items()})
+        pos = 0
+        for g, grp in enumerate(specs_by_group):
+            part = res[pos:pos + len(grp)]
+            pos += len(grp)
+            self.nuis[g], th = _merge([(r["causes"], r["theta"]) for r in part])
+            self.theta_n[g] = np.asarray(th, float)
+
+
+def _blocks_call(g, *, groups, theta_nuis, nuis, **kw):
+    return blocks_task(groups[g], nuis=nuis[g], theta_nuis=theta_nuis[g], **kw)
+
+
+def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[dict]:
+    """Per shared parameter: each run's own estimate (the other shared parameters held at the joint
+    values, the run's sensor effects projected out: one Gauss-Newton step from the joint value) and
+    its sandwich standard error; :func:`check_consistency` tests their scatter."""
+    _, _, _, _, outs, _ = state
+    rows = [(r, p_of_run[g]) for g, o in enumerate(outs) for r in o["runs"]]
+    out = []
+    for j, c in enumerate(shared):
+        per_run = []
+        for (r, p), name in zip(rows, run_names):
+            a = r["A"][j, j]
+            if a <= 0:
+                continue
+            var = sigma2_fn(r, p) * r["M"][j, j] / a ** 2
+            if not (var > 0 and math.isfinite(var)):
+                continue
+            per_run.append({"run": name, "estimate": c.to_estimate(theta[j] - r["b"][j] / a), "se": math.sqrt(var)})
+        out.append({"parameter": c.target, "joint_estimate": c.to_estimate(theta[j]), "per_run": per_run})
+    return out
+
+
+def check_consistency(entry: dict) -> dict:
+    """The scatter of the runs' own estimates of a shared parameter about the joint value: each
+    run's variance is its sandwich variance plus the single-run resolution floor in quadrature (its
+    single-run interval), the chi-square on runs - 1 degrees of freedom, and the runs outside their
+    95 % interval after Bonferroni over the runs."""
+    c = Cause("parameter_error", entry["parameter"])
+    floor_se = _practical(c, None) / 1.96
+    th = entry["joint_estimate"] - 1.0
+    ests = [(r["run"], r["estimate"] - 1.0, r["se"] ** 2 + floor_se ** 2) for r in entry["per_run"]]
+    n = len(ests)
+    z_bonf = float(scipy.stats.norm.isf(0.025 / max(n, 1)))
+    q = float(sum((e - th) ** 2 / v for _, e, v in ests))
+    dof = max(n - 1, 1)
+    pval = float(scipy.stats.chi2.sf(q, dof))
+    bad = [{"run": nm, "estimate": 1.0 + e, "interval": [1.0 + e - 1.96 * math.sqrt(v), 1.0 + e + 1.96 * math.sqrt(v)],
+            "z": (e - th) / math.sqrt(v)} for nm, e, v in ests if abs(e - th) / math.sqrt(v) > z_bonf]
+    return {**entry, "runs": n, "chi2": q, "dof": dof, "p_value": pval,
+            "consistent": pval >= CONSISTENCY_LEVEL and not bad, "disagreeing_runs": bad}
+
+
+def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: list[dict]) -> list[dict]:
+    """The report's finding objects for the shared parameters, their 95 % intervals widened to
+    hold jointly as in a single-run report.
+
+    The half-width combines, in quadrature as ``_finding_for`` does for one run: the statistical
+    part, ``1.96 se`` with the variance multiplied by the over-dispersion of the runs' own estimates
+    (``max(1, chi2 / dof)`` of the consistency check: scatter between runs beyond their sandwich
+    variances, whatever its cause, widens the joint interval by as much), and the comparison's
+    resolution, the single-run floor divided by the square root of the runs that inform the
+    parameter (the floor is a per-run resolution of the sampled comparison; the runs' rates, roads
+    and records differ, so it averages over them)."""
+    from ..diagnosis._intervals import joint_intervals
+
+    cons = {c["parameter"]: c for c in consistency}
+    findings = []
+    for i, c in enumerate(shared):
+        k = cons.get(c.target, {})
+        n_inf = max(int(k.get("runs", n_runs)), 1)
+        disp = max(1.0, float(k.get("chi2", 0.0)) / max(float(k.get("dof", 1)), 1.0))
+        se = math.sqrt(max(cov[i, i], 0.0) * disp)
+        f = _finding_for(c, theta[i], se, _practical(c, None) / math.sqrt(n_inf))
+        z = abs(theta[i]) / se if se > 0 else math.inf
+        f["z"] = float(z)
+        f["overdispersion"] = float(disp)
+        f["runs_informing"] = n_inf
+        nm = named.get(c.target, 0)
+        f["evidence"] = (f"fitted jointly over the {n_runs} runs (each logger's sensor effects as nuisance "
+                         f"parameters): {c.to_estimate(theta[i]):.5g}, z = {z:.3g}; {nm} of the {n_runs} "
+                         f"single-run diagnoses name it; the runs' own estimates scatter {math.sqrt(disp):.3g} x "
+                         f"their standard errors.")
+        findings.append(f)
+    joint_intervals(findings)
+    return findings

@@ -1,0 +1,117 @@
+"""The time-base policy applied to a run being read (:func:`jaxdrift.io.load_run`).
+
+A run whose time column is uniform (within the tolerance of the strict check) is used as it is;
+otherwise, and for channels written on their own times (MDF4, ULog, bags), the policy of
+:mod:`._timebase` makes the grid: jitter and gaps measured, channels resampled inside segments,
+the reference quaternion kept on its own times. A vehicle run is analysed on its longest segment
+(the others are reported in ``time_base``); an attitude run keeps every segment on one grid with
+NaN rows in the gaps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ._table import Columns, file_label
+from ._timebase import build_time_base
+
+__all__ = ["apply_policy", "REFERENCE_COLUMNS"]
+
+REFERENCE_COLUMNS = ("qw", "qx", "qy", "qz")
+#: a logged reference sample whose norm is further than this from 1 is no attitude (left out)
+LOG_QUAT_NORM_TOL = 1e-3
+
+
+def _reference(cols: Columns, data: dict, times, names, notes=None) -> tuple[np.ndarray, np.ndarray]:
+    """The reference quaternion's samples at their own times (rows with all four cells)."""
+    tq = times(names[0])
+    for c in names[1:]:
+        if len(times(c)) != len(tq) or not np.array_equal(times(c), tq):
+            raise InputError(f"{file_label(cols.path)}: the reference columns {', '.join(names)} are not "
+                             f"sampled at the same times ({names[0]} and {c} differ)")
+    q = np.column_stack([data[c] for c in names])
+    fin = np.isfinite(q)
+    partial = fin.any(1) & ~fin.all(1)
+    if partial.any():
+        i = int(np.argmax(partial))
+        j = int(np.argmax(~fin[i]))
+        raise InputError(f"{cols.where(i, names[j])}: empty or NaN while other quaternion cells are set")
+    have = fin.all(1)
+    if cols.fmt in ("ulog", "bag"):
+        # a flight controller logs its attitude before the estimator has one (zeros) or after a
+        # reset: samples that are no rotation are left out of the reference, with a note
+        norms = np.linalg.norm(np.where(fin, q, 0.0), axis=1)
+        bad = have & (np.abs(norms - 1.0) > LOG_QUAT_NORM_TOL)
+        if bad.any():
+            (notes if notes is not None else []).append(f"{file_label(cols.path)}: {int(bad.sum())} of {int(have.sum())} reference samples "
+                              f"are no unit quaternion (norm {float(norms[bad][0]):.3g} at t = {float(tq[bad][0]):.6f} s) "
+                              f"and are left out")
+            have &= ~bad
+    return tq[have], q[have]
+
+
+def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str, fs: float | None,
+                 min_rows: int) -> tuple[np.ndarray, dict, dict, dict, list[str]]:
+    """(grid t, channels on the grid, exact references {"q": (t, q)}, time_base, notes)."""
+    fname = file_label(cols.path)
+    times_of = (lambda c: cols.times[c]) if cols.times else (lambda c: t_raw)
+    ref_names = [c for c in REFERENCE_COLUMNS if c in data] if kind == "attitude" else []
+    ref_notes: list[str] = []
+    refs = {"q": _reference(cols, data, times_of, ref_names, ref_notes)} if ref_names else {}
+    streams = {c: (times_of(c), v) for c, v in data.items() if c not in ref_names}
+    primary = "wx" if kind == "attitude" else "f1"
+    for c, (t, _) in streams.items():
+        if len(t) < 2:
+            raise InputError(f"{fname}, column {c}: {len(t)} sample(s); a run needs at least {min_rows}")
+    if fs is not None and not cols.times:
+        step = float(np.median(np.diff(t_raw)))
+        if abs(step * fs - 1.0) > 0.01:
+            raise InputError(f"{fname}, column t: steps of {step:.9g} s (median), but --fs {fs:g} "
+                             f"gives {1.0 / fs:.9g} s")
+    grid, on_grid, placed, tb = build_time_base(streams, primary, fs=fs, references=refs)
+    if not tb["segments"]:
+        raise InputError(f"{fname}: the channels have no stretch of samples in common "
+                         f"({', '.join(streams)}); nothing to analyse")
+    notes = [_describe(fname, tb)] + ref_notes
+    rates = [streams[c] for c in ("wx", "wy", "wz") if c in streams]
+    if kind == "attitude" and len(rates) == 3 and all(np.array_equal(r[0], rates[0][0]) for r in rates):
+        refs["w"] = (rates[0][0], np.column_stack([r[1] for r in rates]))  # the rates as recorded
+    if "q" in placed:
+        for j, c in enumerate(ref_names):
+            on_grid[c] = placed["q"][:, j]
+        tq = refs["q"][0]
+        tb["reference"] = {"samples": int(len(tq)), "on_grid_rows": int(np.isfinite(placed["q"][:, 0]).sum()),
+                           "fs": float(1.0 / np.median(np.diff(tq))) if len(tq) > 1 else 0.0}
+    if kind != "attitude":
+        # a measured motion channel slower than the grid (a pitch from another logger): on the
+        # grid by linear interpolation (the vehicle diagnosis reads it per row), and its samples
+        # at their own times in the references
+        for c, (t, v) in streams.items():
+            if c != primary and tb["channels"][c]["fs"] * 1.05 < tb["fs"]:
+                refs[c] = (t, v)
+        lengths = [b - a for a, b in tb["segments"]]
+        k = int(np.argmax(lengths))
+        i0, i1 = tb["segments"][k]
+        tb["analysed_segment"] = [i0, i1]
+        if len(lengths) > 1:
+            notes.append(f"{fname}: the run is analysed on its longest segment, {grid[i0]:.6g} .. "
+                         f"{grid[i1 - 1]:.6g} s ({i1 - i0} rows); the other {len(lengths) - 1} segment(s) "
+                         f"are listed in the report's time base")
+        grid = grid[i0:i1]
+        on_grid = {c: v[i0:i1] for c, v in on_grid.items()}
+        for c, (t, v) in list(refs.items()):
+            m = (t >= grid[0]) & (t <= grid[-1])
+            refs[c] = (t[m], v[m])
+    return grid, on_grid, refs, tb, notes
+
+
+def _describe(fname: str, tb: dict) -> str:
+    gaps = tb["gaps"]
+    gap_txt = (f"; {len(gaps)} gap(s) longer than {tb['gap_factor']:g} steps (longest "
+               f"{max(g['duration_s'] for g in gaps):.4g} s) split it into {len(tb['segments'])} segment(s), "
+               f"never interpolated across") if gaps else ""
+    filt = f"; low-pass filtered first: {', '.join(tb['filtered'])}" if tb["filtered"] else ""
+    return (f"{fname}: time base {tb['fs']:.6g} Hz from the median step; jitter {100 * tb['jitter_std_rel']:.3g} % "
+            f"(std), {100 * tb['jitter_max_rel']:.3g} % (max){gap_txt}; channels resampled onto the uniform "
+            f"grid by {tb['method']} interpolation{filt}")

@@ -1,0 +1,225 @@
+"""The time-base policy: one rule for every kind of run and every format (numpy and scipy; no JAX).
+
+Real loggers jitter (0.1-5 % per step), drop samples and write channels at different rates. The
+policy (docs/measured-data.md, "Time base"):
+
+1. **Nominal rate** of a channel: from the median of its time steps (one odd step cannot move it).
+   The run's grid step is the nominal step of its primary channel (``f1`` for vehicle runs, ``wx``
+   for attitude runs), or ``1 / fs`` when ``--fs`` is given.
+2. **Jitter**: the relative step deviation ``(step - nominal) / nominal`` over the steps that are
+   not gaps; its standard deviation and largest magnitude are reported.
+3. **Gaps**: a step longer than :data:`GAP_FACTOR` x nominal (1.5: at least one sample is missing;
+   the jitter of the real logs seen is below 0.25) is a gap. A gap splits the channel into
+   segments; nothing is interpolated across it: grid rows inside a gap are NaN.
+4. **Resampling**: each channel is interpolated linearly (:data:`METHOD`) at the grid times inside
+   its own segments. A channel whose nominal rate is more than :data:`FILTER_RATIO` times the
+   grid's is first low-pass filtered: a Butterworth filter of order :data:`FILTER_ORDER`, run
+   forward and backward (zero phase), cut off at :data:`FILTER_CUTOFF` times the grid's Nyquist
+   frequency, per segment, on the channel's own samples taken as uniform at its nominal rate.
+5. **Segments of the run**: the grid rows where every channel has a value, in runs of consecutive
+   rows; a run shorter than 2 rows is dropped (and reported). The grid starts at the first row of
+   the first segment and ends with the last row of the last one.
+6. **References** (an attitude run's quaternion) are not resampled: their samples are returned at
+   their own times; for callers that read them per grid row they are also placed on the grid row
+   nearest each sample (within half a step, inside a segment), NaN elsewhere.
+
+Linear interpolation of white noise at a fraction ``a`` between two samples leaves
+``(1 - a)^2 + a^2`` of its variance; the mean of that over the grid is returned as
+``noise_variance_factor`` (1 when the grid falls on the samples), so a noise level estimated on
+the grid can be referred back to the samples as recorded.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["GAP_FACTOR", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
+           "sample_segments", "resample", "place_nearest", "row_segments", "build_time_base",
+           "uniform_time_base", "segment_arrays", "run_block"]
+
+#: a step longer than GAP_FACTOR x the nominal step is a gap (a sample or more is missing)
+GAP_FACTOR = 1.5
+#: how samples are carried onto the grid
+METHOD = "linear"
+#: a channel faster than FILTER_RATIO x the grid rate is low-pass filtered before resampling
+FILTER_RATIO = 1.05
+FILTER_ORDER = 4
+#: cut-off of the anti-alias filter, as a fraction of the grid's Nyquist frequency
+FILTER_CUTOFF = 0.8
+
+
+def step_stats(t: np.ndarray) -> dict:
+    """Nominal step (median), jitter and the indices of gap steps of increasing times ``t``."""
+    d = np.diff(t)
+    nominal = float(np.median(d))
+    gap = d > GAP_FACTOR * nominal
+    dev = (d[~gap] - nominal) / nominal
+    return {"nominal_dt": nominal, "fs": 1.0 / nominal,
+            "jitter_std_rel": float(np.std(dev)) if dev.size else 0.0,
+            "jitter_max_rel": float(np.max(np.abs(dev))) if dev.size else 0.0,
+            "gap_steps": np.flatnonzero(gap)}
+
+
+def sample_segments(n: int, gap_steps: np.ndarray) -> list[tuple[int, int]]:
+    """Sample index ranges ``[a, b)`` between gaps (a gap step i lies between samples i and i+1)."""
+    edges = [0] + [int(i) + 1 for i in gap_steps] + [n]
+    return [(a, b) for a, b in zip(edges[:-1], edges[1:]) if b > a]
+
+
+def _lowpass(v: np.ndarray, fs_channel: float, fs_grid: float) -> np.ndarray:
+    from scipy.signal import butter, sosfiltfilt
+
+    sos = butter(FILTER_ORDER, FILTER_CUTOFF * 0.5 * fs_grid, fs=fs_channel, output="sos")
+    pad = min(3 * (2 * len(sos) + 1), len(v) - 1)
+    if pad < 1:
+        return v
+    return sosfiltfilt(sos, v, axis=0, padlen=pad)
+
+
+def resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, *, fs_grid: float | None = None):
+    """``v`` (n,) sampled at ``t`` onto ``grid``: linear inside each segment of ``t``, NaN outside;
+    low-pass filtered first when ``t`` is more than FILTER_RATIO times faster than ``fs_grid``.
+
+    Returns (values on the grid, fractions ``a`` of the interpolated rows, stats of ``t``, filtered)."""
+    st = step_stats(t)
+    filtered = bool(fs_grid and st["fs"] > FILTER_RATIO * fs_grid)
+    if filtered:
+        v = np.array(v, dtype=np.float64)
+        for a, b in sample_segments(len(t), st["gap_steps"]):
+            if b - a > 1:
+                v[a:b] = _lowpass(v[a:b], st["fs"], fs_grid)
+    # one interpolation over all samples; rows inside a gap step (or outside the samples) are then
+    # cut: inside a segment, the two samples around a row are that segment's own
+    out = np.interp(grid, t, v)
+    j = np.clip(np.searchsorted(t, grid, side="right"), 1, len(t) - 1)
+    gap = np.zeros(len(t) - 1, bool)
+    gap[st["gap_steps"]] = True
+    on_sample = grid == t[j - 1]
+    bad = (grid < t[0]) | (grid > t[-1]) | (gap[j - 1] & ~on_sample)
+    out[bad] = np.nan
+    frac = (grid[~bad] - t[j - 1][~bad]) / (t[j] - t[j - 1])[~bad]
+    return out, np.clip(frac, 0.0, 1.0), st, filtered
+
+
+def row_segments(valid: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
+    """Runs of consecutive True rows as ``[i0, i1)``: (kept: 2 rows or more, dropped: shorter)."""
+    v = np.concatenate([[False], valid, [False]]).astype(np.int8)
+    d = np.diff(v)
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    kept = [(int(a), int(b)) for a, b in zip(starts, ends) if b - a >= 2]
+    dropped = [(int(a), int(b)) for a, b in zip(starts, ends) if b - a < 2]
+    return kept, dropped
+
+
+def place_nearest(grid: np.ndarray, valid: np.ndarray, t_ref: np.ndarray, v_ref: np.ndarray,
+                  dt: float) -> np.ndarray:
+    """Reference samples on the grid row nearest each (within half a step, on a valid row; where
+    two samples share a row the nearer one), NaN elsewhere. ``v_ref`` is (m, k)."""
+    out = np.full((len(grid), v_ref.shape[1]), np.nan)
+    if len(t_ref) == 0:
+        return out
+    k = np.rint((t_ref - grid[0]) / dt).astype(np.int64)
+    ok = (k >= 0) & (k < len(grid))
+    k, tr, vr = k[ok], t_ref[ok], v_ref[ok]
+    dist = np.abs(grid[k] - tr)
+    ok = (dist <= 0.5 * dt * (1 + 1e-9)) & valid[k]
+    k, dist, vr = k[ok], dist[ok], vr[ok]
+    order = np.lexsort((dist, k))  # per row, the nearest sample first
+    k, vr = k[order], vr[order]
+    first = np.concatenate([[True], k[1:] != k[:-1]])
+    out[k[first]] = vr[first]
+    return out
+
+
+def _gaps(streams: dict, stats: dict) -> list[dict]:
+    gaps = {}
+    for name, (t, _) in streams.items():
+        for i in stats[name]["gap_steps"]:
+            key = (float(t[i]), float(t[i + 1]))
+            gaps.setdefault(key, []).append(name)
+    return [{"t_start": a, "t_end": b, "duration_s": b - a, "channels": ch}
+            for (a, b), ch in sorted(gaps.items())]
+
+
+def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
+                    references: dict | None = None) -> tuple[np.ndarray, dict, dict, dict]:
+    """The policy for channels on their own times: ``streams`` {name: (t, v)} (v (n,)),
+    ``primary`` the channel whose nominal step makes the grid (unless ``fs``), ``references``
+    {name: (t, v (m, k))} kept on their own times.
+
+    Returns (grid t, {name: values on the grid, NaN in gaps}, {name: reference on the grid's
+    nearest rows}, time_base dict)."""
+    t_p = streams[primary][0]
+    st_p = step_stats(t_p)
+    dt = 1.0 / fs if fs else st_p["nominal_dt"]
+    t0 = max(float(t[0]) for t, _ in streams.values())
+    t1 = min(float(t[-1]) for t, _ in streams.values())
+    n = int(np.floor((t1 - t0) / dt * (1 + 1e-12) + 1e-9)) + 1 if t1 >= t0 else 0
+    grid = t0 + np.arange(n) * dt
+    grid = grid[grid <= t1]
+    n = len(grid)
+    data, stats, fracs, filtered = {}, {}, [], []
+    for name, (t, v) in streams.items():
+        data[name], frac, stats[name], f = resample(t, v, grid, fs_grid=1.0 / dt)
+        if name == primary:
+            fracs = frac
+        if f:
+            filtered.append(name)
+    valid = np.ones(n, bool)
+    for v in data.values():
+        valid &= np.isfinite(v)
+    kept, dropped = row_segments(valid)
+    for a, b in dropped:
+        valid[a:b] = False
+    # the grid spans the kept segments: rows before the first and after the last are cut
+    lo, hi = (kept[0][0], kept[-1][1]) if kept else (0, 0)
+    grid, valid = grid[lo:hi], valid[lo:hi]
+    data = {name: v[lo:hi] for name, v in data.items()}
+    kept = [(a - lo, b - lo) for a, b in kept]
+    dropped = [(a - lo, b - lo) for a, b in dropped if lo <= a and b <= hi]
+    refs = {name: place_nearest(grid, valid, tr, vr, dt) for name, (tr, vr) in (references or {}).items()}
+    fa = np.asarray(fracs)
+    tb = {"nominal_dt": dt, "fs": 1.0 / dt, "jitter_std_rel": st_p["jitter_std_rel"],
+          "jitter_max_rel": st_p["jitter_max_rel"], "gap_factor": GAP_FACTOR, "gaps": _gaps(streams, stats),
+          "segments": [list(s) for s in kept], "dropped_segments": [list(s) for s in dropped],
+          "resampled": True, "method": METHOD, "filtered": filtered,
+          "noise_variance_factor": float(np.mean((1 - fa) ** 2 + fa ** 2)) if fa.size else 1.0,
+          "channels": {name: {"fs": s["fs"], "samples": int(len(streams[name][0])),
+                              "jitter_std_rel": s["jitter_std_rel"], "jitter_max_rel": s["jitter_max_rel"],
+                              "gaps": int(len(s["gap_steps"]))} for name, s in stats.items()}}
+    if fs:
+        tb["primary_fs"] = st_p["fs"]
+    return grid, data, refs, tb
+
+
+def uniform_time_base(t: np.ndarray) -> dict:
+    """The record of a run already on a uniform grid (nothing resampled): one segment."""
+    dt = float((t[-1] - t[0]) / (len(t) - 1)) if len(t) > 1 else 0.0
+    dev = (np.diff(t) - dt) / dt if dt else np.zeros(0)
+    return {"nominal_dt": dt, "fs": 1.0 / dt if dt else 0.0, "jitter_std_rel": float(np.std(dev)) if dev.size else 0.0,
+            "jitter_max_rel": float(np.max(np.abs(dev))) if dev.size else 0.0, "gap_factor": GAP_FACTOR, "gaps": [],
+            "segments": [[0, int(len(t))]], "dropped_segments": [], "resampled": False, "method": None,
+            "filtered": [], "noise_variance_factor": 1.0}
+
+
+def segment_arrays(run: dict, names=("t", "w", "q_ref", "acc")):
+    """Per segment of an attitude run (the dict of :func:`read_attitude_run`), a dict of its
+    arrays restricted to the segment (every value finite except the reference's NaN rows):
+    ``[{"t": ..., "w": ..., "q_ref": ..., "acc": ..., "rows": (i0, i1)}, ...]``."""
+    segs = run.get("time_base", {}).get("segments") or [[0, len(run["t"])]]
+    out = []
+    for i0, i1 in segs:
+        d = {k: (None if run.get(k) is None else run[k][i0:i1]) for k in names}
+        d["rows"] = (int(i0), int(i1))
+        d["dt"] = run["dt"]
+        out.append(d)
+    return out
+
+
+def run_block(tb: dict | None) -> dict | None:
+    """The time base as a report's ``run`` block shows it (JSON-ready; None without a record)."""
+    if not tb:
+        return None
+    keys = ("fs", "nominal_dt", "jitter_std_rel", "jitter_max_rel", "gap_factor", "gaps", "segments",
+            "analysed_segment", "resampled", "method", "filtered", "noise_variance_factor")
+    return {k: tb[k] for k in keys if k in tb}

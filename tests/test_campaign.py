@@ -1,0 +1,160 @@
+"""Campaigns (``jaxdrift.campaign``): the manifest, the joint fit against the single-run fit it
+generalises, and a small campaign of independently generated runs on a LocalCluster of two
+worker processes (a bad run reported, the others diagnosed, the joint intervals narrower than
+every single-run interval and holding the truth, a rerun served from the cache)."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from jaxdrift.campaign import RunSpec, read_manifest
+from jaxdrift.errors import UsageError
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks" / "independent"))
+import gen_campaign as gc  # noqa: E402
+
+
+# ----------------------------------------------------------------------------------- manifest
+
+
+def _write(p: Path, text: str) -> Path:
+    p.write_text(text)
+    return p
+
+
+def test_manifest_reads_runs_with_their_options(tmp_path):
+    m = _write(tmp_path / "c.toml", 'model = "m.json"\n[[run]]\nfile = "a.csv"\nlogger = "L1"\nrepetitions = 12\n'
+                                     '[[run]]\nfile = "/abs/b.csv"\nunits = "f1=kN"\nfs = 500\n')
+    specs, model = read_manifest(m)
+    assert model == str(tmp_path / "m.json")
+    assert specs[0] == RunSpec(path=str(tmp_path / "a.csv"), logger="L1", repetitions=12.0)
+    assert specs[1].path == "/abs/b.csv" and specs[1].units == "f1=kN" and specs[1].fs == 500.0
+    assert specs[1].logger_id != specs[0].logger_id  # no logger: the run's own
+
+
+@pytest.mark.parametrize("text,msg", [
+    ('[[run]]\nfile = "a.csv"\nrepetition = 3\n', "run 1: unknown key 'repetition'"),
+    ('[[run]]\nlogger = "x"\n', "run 1: needs file"),
+    ('[[run]]\nfile = "a.csv"\nrepetitions = -1\n', "repetitions must be a number >= 0"),
+    ('[[run]]\nfile = "a.csv"\n[[run]]\nfile = "a.csv"\n', "listed twice"),
+    ('model = "m.json"\n', "lists no runs"),
+    ('[[run]\nfile = "a.csv"\n', "invalid TOML"),
+])
+def test_manifest_errors_name_the_run_and_the_key(tmp_path, text, msg):
+    with pytest.raises(UsageError, match=msg.replace("(", r"\(")):
+        read_manifest(_write(tmp_path / "c.toml", text))
+
+
+def test_missing_dask_says_how_to_install(monkeypatch):
+    from jaxdrift.campaign import _executor
+
+    monkeypatch.setitem(sys.modules, "distributed", None)
+    with pytest.raises(UsageError, match=r"pip install 'jaxdrift\[campaign\]'"):
+        with _executor.dask_client(workers=1):
+            pass
+
+
+# --------------------------------------------------------------- the joint fit of one run
+
+
+def _design(tmp_path, n, seed, **kw):
+    d = gc.draw_campaign(n, seed, **kw)
+    gc.write_campaign(d, str(tmp_path), progress=False)
+    return d
+
+
+def test_joint_fit_of_one_run_is_the_single_run_fit(tmp_path):
+    """One run, one logger: the joint Gauss-Newton with the sensor effect projected out gives the
+    single-run fit of the same causes (estimate and sandwich variance; Frisch-Waugh-Lovell)."""
+    from jaxdrift.campaign._joint import JointFit
+    from jaxdrift.campaign._tasks import _problem
+    from jaxdrift.diagnosis.vehicle._causes import Cause
+    from jaxdrift.diagnosis.vehicle._problem import _gauss_newton
+    from jaxdrift.diagnosis.vehicle._select import _covariance
+    from jaxdrift.io import read_model
+
+    d = _design(tmp_path, 1, 5150, n_shared=1, durations=(6.0, 6.0), rates=(250,), effect_free=0.0)
+    model = read_model(str(tmp_path / "model.json"))
+    spec = RunSpec(path=str(tmp_path / "run_000.csv"))
+    e = d["loggers"][0]["effect"]
+    param = Cause("parameter_error", d["shared"][0]["parameter"])
+    sensor = Cause(e["cause"], e["channel"])
+    prob = _problem(spec, model, True)
+    single = _gauss_newton(prob, [param, sensor], np.zeros(2), iters=12)
+    var1 = _covariance(prob, single.X, single.rss / (len(single.r) - 2))[0, 0]
+
+    fit = JointFit(None, [[spec]], model, True, [param], [([sensor], [0.0])], progress=False)
+    theta, state = fit.refit([param], [0.0], iters=12)
+    var2 = fit.covariance(state, 1)[0, 0]
+    # the joint refit stops once a step is below 5 % of the standard error
+    assert abs(theta[0] - single.theta[0]) <= 0.05 * math.sqrt(var1)
+    assert var2 == pytest.approx(var1, rel=1e-3)
+    assert fit.theta_n[0][0] == pytest.approx(single.theta[1], rel=1e-3)
+
+
+# ------------------------------------------------------------------- a campaign on Dask
+
+
+@pytest.mark.slow
+def test_small_campaign_on_two_worker_processes(tmp_path):
+    pytest.importorskip("distributed")
+    from jaxdrift.campaign import campaign
+
+    data = tmp_path / "data"
+    # an inertia error: the cause a single run confuses with a delay
+    d = _design(data, 3, 6021, n_shared=1, durations=(5.0, 5.0), rates=(200,), params=("I",),
+                motion_noise_share=0.0)
+    bad = data / "broken.csv"
+    bad.write_text("t,f1,f2\n0,1,2\n0.005,nan,2\n")
+    with open(data / "campaign.toml", "a") as fh:
+        fh.write('\n[[run]]\nfile = "broken.csv"\n')
+    out = tmp_path / "out"
+    doc = campaign(manifest=str(data / "campaign.toml"), out=str(out), workers=2, progress=False, figures=False)
+    assert doc["schema"] == "jaxdrift.campaign/1"
+    assert doc["provenance"]["executor"] == {"kind": "dask", "scheduler": "LocalCluster", "workers": 2}
+    status = {Path(r["run"]).name: r for r in doc["runs"]}
+    assert status["broken.csv"]["status"] == "failed" and "broken.csv" in status["broken.csv"]["message"]
+    ok = [r for r in doc["runs"] if r["status"] == "ok"]
+    assert len(ok) == 3 and all((out / r["report"]).is_file() for r in ok)
+    e = d["shared"][0]
+    joint = {f["parameter"]: f for f in doc["joint"]["findings"]}
+    assert set(joint) == {e["parameter"]}
+    f = joint[e["parameter"]]
+    assert f["interval"][0] <= e["value"] <= f["interval"][1]
+    singles = [s["interval"] for r in ok for s in r["findings"] if s.get("parameter") == e["parameter"]]
+    assert singles, "no single run names the shared error: the test says nothing"
+    assert all(f["interval"][1] - f["interval"][0] < hi - lo for lo, hi in singles)
+    saved = json.loads((out / "campaign.json").read_text())
+    assert saved["joint"]["findings"] == json.loads(json.dumps(doc["joint"]["findings"]))
+    # every finished run is in the cache; a rerun computes nothing again
+    assert len(list((out / "cache").glob("diagnose-*.json"))) == 3
+    again = campaign(manifest=str(data / "campaign.toml"), out=str(out), workers=1, progress=False, figures=False)
+    assert again["provenance"]["cached_runs"] == 3
+    assert again["joint"] == json.loads(json.dumps(doc["joint"]))
+    assert os.path.isfile(out / "summary.md")
+
+
+def test_consistency_flags_the_run_outside_its_interval():
+    """20 runs scattered with their own standard errors about the truth, one moved by 8 of its
+    interval's half-widths (a load change): only that one is listed, and the check fails."""
+    from jaxdrift.campaign._joint import check_consistency
+
+    rng = np.random.default_rng(11)
+    se = rng.uniform(2e-4, 1e-3, 20)
+    est = 1.0 + se * rng.standard_normal(20)
+    entry = {"parameter": "m3", "joint_estimate": 1.0,
+             "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s)} for i, (e, s) in enumerate(zip(est, se))]}
+    ok = check_consistency(entry)
+    assert ok["consistent"] and ok["dof"] == 19 and not ok["disagreeing_runs"]
+    half = 1.96 * math.hypot(se[7], 2e-4 / 1.96)
+    entry["per_run"][7]["estimate"] = 1.0 + 8 * half
+    bad = check_consistency(entry)
+    assert not bad["consistent"] and [d["run"] for d in bad["disagreeing_runs"]] == ["r7"]
