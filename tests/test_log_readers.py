@@ -504,8 +504,9 @@ def test_ulog_reference_samples_that_are_no_rotation_are_left_out(tmp_path):
 
 
 def test_gapped_attitude_run_is_diagnosed_not_crashed(tmp_path, capsys):
-    """Until the attitude diagnosis analyses segments jointly (SEGMENTS_JOINT), `diagnose` gives
-    it the longest segment, says so, and the report's run block names it."""
+    """A run split by a gap is diagnosed whole (the attitude diagnosis analyses its segments
+    jointly, SEGMENTS_JOINT); were it not, `diagnose` would give it the longest segment, say so, and
+    the report's run block would name it."""
     import json
 
     from jaxdrift.diagnosis.attitude import _pipeline
@@ -524,6 +525,10 @@ def test_gapped_attitude_run_is_diagnosed_not_crashed(tmp_path, capsys):
         assert tb["analysed_segment"] == tb["segments"][1] and rep["run"]["rows"] == np.diff(tb["segments"][1])[0]
         assert "analyses the longest" in capsys.readouterr().err
     assert len(tb["gaps"]) == 1
+    if joint:
+        assert "analysed_segment" not in tb
+        assert "analyses the longest" not in capsys.readouterr().err
+        assert rep["run"]["rows"] == tb["segments"][-1][1] - tb["segments"][0][0]
 
 
 def test_ros_bag_with_varying_frame_names_reads_message_by_message(tmp_path):

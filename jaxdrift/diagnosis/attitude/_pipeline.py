@@ -66,6 +66,11 @@ from ._report import assemble_report
 __all__ = ["AttitudeState", "diagnose_attitude"]
 
 
+#: the diagnosis takes a run split by gaps whole and analyses its segments jointly (integration
+#: restarts at each segment; the reference intervals across a gap are left out)
+SEGMENTS_JOINT = True
+
+
 @dataclass
 class AttitudeState:
     """What the steps know about one run; filled in step by step."""
