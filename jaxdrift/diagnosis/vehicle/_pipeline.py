@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
+from ._adequacy import assess_model_form
 from ._causes import FORCE_CHANNELS, _apply
 from ._confirm import confirm_by_resimulation, confirm_corrections
 from ._extend import resimulate
@@ -57,11 +58,15 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                          "interval": [float(noise["lo"]), float(noise["hi"])],
                          "evidence": src[0].upper() + src[1:] + "."})
     joint_intervals(findings)
+    # model adequacy and the nonlinear suspension (_adequacy): its findings lead, as the linear
+    # findings hold only if the model's form does; no other finding changes
+    form = assess_model_form(prob, p_ext, corr_ext, res1, dynamic)
+    findings = form["findings"] + findings
     if not findings:
         findings.append({"cause": "none", "evidence": (
             "no systematic cause passes the test and " + noise["source"] +
             ", indistinguishable from the numerical floor of the comparison.")})
-    notes += identifiability_notes(prob, sel)
+    notes += identifiability_notes(prob, sel) + form["notes"]
     for c, est, imp in held_out:
         (a1, b1), (a2, b2) = imp["halves"]
         notes.append(f"Left out of the extended model: {c.label} = {est:.5g} passed the test but does not "
@@ -86,7 +91,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         "kind": "vehicle",
         "simulation_error": sim_err,
         "findings": findings,
-        "extended_model": {"parameters": params_ext, "corrections": corrections},
+        "extended_model": {"parameters": params_ext, "corrections": corrections,
+                           **({"nonlinear": form["correction"]} if form["correction"] else {})},
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
                 "duration_s": float(run.t[-1] - run.t[0]),
