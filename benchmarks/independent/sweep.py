@@ -146,6 +146,10 @@ def score(kind: str, effects: list, findings: list) -> dict:
         out["right_or_declared"] = set(systematic) <= head_alt
     else:
         out["false_alarm"] = out["first_is_systematic"]
+    right = [f for f in findings if target(f) in systematic]
+    out["right_findings"] = len(right)
+    # a finding not confirmed by a check stays in the findings but out of the extended model
+    out["right_all_confirmed"] = all(f.get("confirmed", True) for f in right) if right else None
     cov = []
     for e in effects:
         match = [f for f in findings if target(f) == target(e)]
@@ -154,6 +158,7 @@ def score(kind: str, effects: list, findings: list) -> dict:
              "interval": match[0].get("interval") if match else None}
         c["covered"] = bool(match) and _inside(e["value"], c["interval"])
         if e["cause"] in NOISE[kind]:
+            c["estimate_kind"] = match[0].get("estimate_kind") if match else None
             c["within_1.5x"] = bool(match) and est is not None and e["value"] > 0 and \
                 1 / 1.5 <= est / e["value"] <= 1.5
         cov.append(c)
@@ -165,7 +170,7 @@ def score(kind: str, effects: list, findings: list) -> dict:
 # ----------------------------------------------------------------------------- one run
 def _trim(f: dict) -> dict:
     keep = ("cause", "channel", "parameter", "sensor", "axle", "state", "estimate", "interval", "z",
-            "evidence", "indistinguishable_from")
+            "evidence", "indistinguishable_from", "confirmed", "estimate_kind")
     return {k: f[k] for k in keep if k in f}
 
 
@@ -341,7 +346,25 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
     for r in errors:
         misses.append(f"run {r['index']} [{r['stratum']}]: ERROR {r['error']}")
     cpu = [r.get("gen_cpu_s", 0) + r.get("diag_cpu_s", 0) for r in ok]
+    with_right = [r for r in ok if r["score"].get("right_all_confirmed") is not None]
+    noise_kind = defaultdict(lambda: [0, 0])
+    for c in noise:
+        noise_kind[str(c.get("estimate_kind"))][0] += c["covered"]
+        noise_kind[str(c.get("estimate_kind"))][1] += 1
+
+    def has_delay(r):
+        return any(e["cause"] == "force_delay" for e in r["effects"])
+    delay_single = [r for r in singles if has_delay(r)]
+    delay_pair = [r for r in pairs if has_delay(r)]
     return {
+        "confirmation": {
+            "runs_with_right_systematic_finding": len(with_right),
+            "all_right_confirmed": sum(r["score"]["right_all_confirmed"] for r in with_right),
+            "all_right_confirmed_pct": _pct(sum(r["score"]["right_all_confirmed"] for r in with_right), len(with_right)),
+            "not_all_confirmed": [r["index"] for r in with_right if not r["score"]["right_all_confirmed"]]},
+        "delays": {"single": {"n": len(delay_single), "right": sum(r["score"]["right"] for r in delay_single)},
+                   "pair": {"n": len(delay_pair), "right": sum(r["score"]["right"] for r in delay_pair)}},
+        "noise_coverage_by_kind": {k: {"covered": v[0], "n": v[1]} for k, v in sorted(noise_kind.items())},
         "kind": kind, **meta, "runs": len(results), "diagnosed": len(ok), "errors": len(errors),
         "single": {"n": len(singles), "right_first": sum(r["score"]["right"] for r in singles),
                    "right_first_pct": _pct(sum(r["score"]["right"] for r in singles), len(singles)),
@@ -442,7 +465,7 @@ def markdown(s: dict) -> str:
          f"{s['runs']} runs (design seed {s['seed']}, generator `benchmarks/independent/gen_{s['kind']}.py`), "
          f"diagnosed by jaxdrift {s.get('jaxdrift_commit', '?')}; {s['errors']} failed with an error. "
          f"Reproduce: `{s['command']}`", "",
-         "| measure | result | target (issue #13) |", "|---|---|---|",
+         "| measure | result | target |", "|---|---|---|",
          f"| right cause first, single-effect runs | {s['single']['right_first']}/{s['single']['n']} "
          f"({s['single']['right_first_pct']} %) | >= 95 % |",
          f"| ... or declared indistinguishable | {s['single']['right_or_declared']}/{s['single']['n']} | |",
@@ -457,6 +480,14 @@ def markdown(s: dict) -> str:
          f"{s['coverage']['runs']} ({s['coverage']['runs_all_covered_pct']} %) | >= 90 % |",
          f"| noise level within 1.5x of the truth | {s['noise_within_1.5x']['k']}/{s['noise_within_1.5x']['n']} "
          f"({s['noise_within_1.5x']['pct']} %) | 100 % |",
+         *([f"| runs whose right systematic findings are all confirmed (in the extended model) | "
+            f"{s['confirmation']['all_right_confirmed']}/{s['confirmation']['runs_with_right_systematic_finding']} "
+            f"({s['confirmation']['all_right_confirmed_pct']} %) | >= 95 % |",
+            f"| delays right: single-effect runs / pairs with a delay | {s['delays']['single']['right']}/"
+            f"{s['delays']['single']['n']} / {s['delays']['pair']['right']}/{s['delays']['pair']['n']} | as often |",
+            "| noise intervals holding the truth, by kind | " + ", ".join(
+                f"{k} {v['covered']}/{v['n']}" for k, v in s["noise_coverage_by_kind"].items()) + " | all |"]
+           if "confirmation" in s else []),
          *_gain_rows(s.get("gain_by_resimulation")),
          *(_gain_rows(s["gain_by_resimulation_dynamic"], " (pitch error above the drift band)")
            if s.get("gain_by_resimulation_dynamic") else []),

@@ -164,7 +164,7 @@ def assess_model_form(prob, p_ext: dict, corr_ext: dict, res1, dynamic: bool) ->
         lift = TyreLiftOff(ch)
         det = lift.detect(run[ch], sigma)
         if det is not None:
-            findings.append(lift.finding(det))
+            findings.append({**lift.finding(det), "confirmed": True})
             correction["lift_off"] = True
     names = [nm for nm in prob.names if nm != "static"]
     if not dynamic or not names:
@@ -220,7 +220,8 @@ def _named(prob, st, terms, tests, scales, m, correction) -> list[dict]:
             ev = (f"{c.describe(th, st)[0].upper()}{c.describe(th, st)[1:]}: the {_WORDS[nm]} left after the "
                   f"fit grows with {phrase} (compared below {band[1]:.3g} Hz, z = {z:.1f}); with the correction its "
                   f"RMS in that band {'falls' if after < before else 'rises'} from {before:.4g} to {after:.4g} {_UNITS[nm]}")
-            f = {"cause": c.name, "parameter": c.target, "estimate": float(est), "unit": c.unit,
+            # in the extended model (``extended_model.nonlinear``); its check is the adequacy test
+            f = {"cause": c.name, "parameter": c.target, "confirmed": True, "estimate": float(est), "unit": c.unit,
                  "interval": [float(iv[0]), float(iv[1])], "evidence": ev + ".", "z": float(z),
                  "residual": {"channel": nm, "rms_without": before, "rms_with": after, "unit": _UNITS[nm],
                               "band_hz": band}}

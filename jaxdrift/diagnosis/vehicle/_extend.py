@@ -173,6 +173,30 @@ def noise_pitch_std(p: dict, h: float, n: int) -> np.ndarray:
 
 
 
+def noise_pitch_dynamic_rms(p: dict, h: float) -> float:
+    """RMS of the force-driven pitch error in the dynamic band (above ``DYNAMIC_BAND_HZ``, the
+    zero-phase high-pass of ``_dynamic_rms``) per unit force-noise sigma: the linearised model's
+    response to white samples on both forces (each held over its interval), integrated over
+    frequency with the high-pass applied forward and backward. The drift below the band, which
+    grows without bound, does not enter; what is left is stationary."""
+    fs = 1.0 / h
+    if DYNAMIC_BAND_HZ >= 0.45 * fs:
+        return float("nan")
+    A, B = _linear_force_system(p)
+    Phi, G = _discretise(A, B, h)
+    Gam = G[0]
+    f = np.unique(np.concatenate([np.geomspace(DYNAMIC_BAND_HZ / 20, fs / 2, 1500),
+                                  np.linspace(DYNAMIC_BAND_HZ / 20, fs / 2, 1500)]))
+    z = np.exp(2j * np.pi * f * h)
+    eye = np.eye(Phi.shape[0])
+    H = np.array([np.linalg.solve(zk * eye - Phi, Gam)[3] for zk in z])  # (nf, 2): pitch row
+    sos = scipy.signal.butter(4, DYNAMIC_BAND_HZ, btype="highpass", fs=fs, output="sos")
+    _, hp = scipy.signal.sosfreqz(sos, worN=f, fs=fs)
+    power = np.sum(np.abs(H) ** 2, axis=1) * np.abs(hp) ** 4
+    # variance of a discrete-time process: (1/pi) int_0^pi S(w) dw = 2 h int_0^{fs/2} S df
+    return float(math.sqrt(2.0 * h * np.trapezoid(power, f)))
+
+
 def _rms(x) -> float:
     x = np.asarray(x, dtype=float)
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0

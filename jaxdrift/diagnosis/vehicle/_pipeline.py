@@ -5,7 +5,7 @@ from __future__ import annotations
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ._adequacy import assess_model_form
 from ._causes import FORCE_CHANNELS, _apply
-from ._confirm import confirm_by_resimulation, confirm_corrections
+from ._confirm import confirm_by_resimulation, confirm_corrections, unconfirmed_findings
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
 from ._problem import _Problem
@@ -27,8 +27,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     model = dict(DEFAULT_MODEL if model is None else model)
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
-    sel = _select(prob, log=log)
-    sel, held_out = confirm_corrections(prob, sel, log)
+    sel0 = _select(prob, log=log)
+    sel, held_out = confirm_corrections(prob, sel0, log)
     resim_out = []
     if with_simulation:
         sel, resim_out = confirm_by_resimulation(prob, sel, log)
@@ -45,17 +45,21 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     sigma = noise["sigma"]
     notes = list(noise["notes"])
 
-    # findings
+    # findings: the confirmed causes (in the extended model), then those a check did not confirm
     corrections = {ch: {"offset": float(corr_ext[ch]["offset"]),
                         "scale": float(1.0 / (1.0 + corr_ext[ch]["kappa"])),
                         "delay": float(corr_ext[ch]["delay"])} for ch in FORCE_CHANNELS}
     findings = cause_findings(prob, sel, model, res1, sigma)
+    for f in findings:
+        f["confirmed"] = True
+    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out)
     if not dynamic and sigma > 0:
         findings += static_findings(res0, sigma, corrections)
     if noise["found"]:
         src = noise["source"]
         findings.append({"cause": "force_noise", "estimate": float(sigma), "unit": "N",
                          "interval": [float(noise["lo"]), float(noise["hi"])],
+                         "estimate_kind": noise["kind"],
                          "evidence": src[0].upper() + src[1:] + "."})
     joint_intervals(findings)
     # model adequacy and the nonlinear suspension (_adequacy): its findings lead, as the linear
@@ -67,16 +71,6 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
             "no systematic cause passes the test and " + noise["source"] +
             ", indistinguishable from the numerical floor of the comparison.")})
     notes += identifiability_notes(prob, sel) + form["notes"]
-    for c, est, imp in held_out:
-        (a1, b1), (a2, b2) = imp["halves"]
-        notes.append(f"Left out of the extended model: {c.label} = {est:.5g} passed the test but does not "
-                     f"improve the {imp['channel']} residual on the whole run and on each half (RMS "
-                     f"{imp['without']:.4g} -> {imp['with']:.4g}, first half {a1:.4g} -> {b1:.4g}, second half "
-                     f"{a2:.4g} -> {b2:.4g}).")
-    for c, est, before, after, without in resim_out:
-        notes.append(f"Left out of the extended model: {c.label} = {est:.5g}; with it the force-driven "
-                     f"pitch RMS error was {after:.4g} rad against {before:.4g} rad for the model "
-                     f"({without:.4g} rad without it).")
 
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}

@@ -8,8 +8,8 @@ import numpy as np
 import scipy.stats
 
 from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical, method_half
-from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, lowband_cutoff,
-                         written_digits)
+from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_white,
+                         lowband_cutoff, written_digits)
 from ._problem import _Problem
 from ._residuals import Residuals
 
@@ -138,6 +138,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
     run = prob.pipe.run
     dynamic = len(sel.fit.r) > 2
     notes = []
+    kind = "estimate"  # or "upper_bound": a level the noise cannot exceed, interval from 0
     if dynamic:
         sigma, with_motion, dof = prob.lowband_levels(
             sel.fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
@@ -161,9 +162,19 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
                    f"{sigma:.3g} N; the smaller of these two upper bounds is reported")
             if 1.0 / run.dt - fc < FOLD_MIN_HZ:
                 # content from below FOLD_MIN_HZ folds into both: no lower limit can be read
-                lo = 0.0
+                kind = "upper_bound"
                 src += (f" (at {1.0 / run.dt:.4g} Hz the forces' content near and above the "
                         f"Nyquist frequency reaches both, so its interval starts at 0)")
+            elif force_top_band_white(run):
+                kind = "estimate"
+                src += ("; the forces' 4th, 6th and 8th differences agree, so the top of the band "
+                        "holds noise alone and the 4th-difference level is an estimate")
+            else:
+                # a level read from the forces' differences holds their own content there too
+                kind = "upper_bound"
+                src += ("; the forces' 4th, 6th and 8th differences give decreasing levels (the "
+                        "forces' own content near the Nyquist frequency), so it is an upper bound "
+                        "and its interval starts at 0")
             sigma = hf
         elif not found and sigma > NOISE_CONFIRMED_MIN_N and sigma / ALIAS_RATIO <= hf <= ALIAS_RATIO * sigma:
             # below the reporting floor, but the forces' own 4th differences, an estimate from the
@@ -182,6 +193,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             src += (f"; sampled at {1.0 / run.dt:.4g} Hz, only content above {1.0 / run.dt - fc:.4g} "
                     f"Hz folds into this band, which leaves no measurable level on runs without noise")
         elif hf > ALIAS_RATIO * sigma:
+            kind = "upper_bound"
             # The force samples carry content up to the Nyquist frequency: without an
             # anti-aliasing filter, content above it folds into the low band as an error on the
             # samples that no model tells from noise (measured on an independent noise-free 250 Hz
@@ -195,7 +207,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
     else:
         from_lowband = False
         sigma, _, hi = _force_hf_noise(run)
-        lo = 0.0  # an upper bound (see src)
+        kind = "upper_bound"  # see src
         found = sigma > NOISE_MIN_N
         src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "
                f"forces give {sigma:.3g} N, an upper bound (the forces' own content near the "
@@ -216,16 +228,19 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
     # added in quadrature to each side; an upper bound keeps its interval from zero
     m = method_half("force_noise", sigma)
     hi = sigma + math.hypot(hi - sigma, m)
-    if lo > 0.0:
+    if kind == "upper_bound":
+        lo = 0.0
+    elif lo > 0.0:
         lo = max(sigma - math.hypot(sigma - lo, m), 0.0)
     return {"sigma": sigma, "lo": lo, "hi": hi, "found": found, "source": src,
-            "notes": notes}
+            "notes": notes, "kind": kind}
 
 
-def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma: float) -> list[dict]:
+def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma: float,
+                   only=None) -> list[dict]:
     """One finding per chosen cause (an equal offset on both forces: one per channel), with the
     evidence sentence: the RMS of the channel where the cause shows most, without the cause and
-    with it (the other causes kept)."""
+    with it (the other causes kept). ``only``: the causes to write findings for (default all)."""
     pipe = prob.pipe
     fit = sel.fit
     dynamic = len(fit.r) > 2
@@ -234,6 +249,8 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
     se = np.sqrt(np.maximum(np.diag(sel.cov), 0.0)) if len(fit.causes) else np.zeros(0)
     findings = []
     for i, c in enumerate(fit.causes):
+        if only is not None and c not in only:
+            continue
         est = c.to_estimate(fit.theta[i])
         others = [j for j in range(len(fit.causes)) if j != i]
         p_o, corr_o = _apply(model, [fit.causes[j] for j in others], fit.theta[others])
