@@ -73,7 +73,8 @@ def _smooth_force(n, rng, mean, spread):
 @pytest.mark.parametrize("seed", range(5))
 def test_lift_off_detector_on_synthetic_forces(seed):
     """A force clipped at zero on ~3 % of the samples (2 N noise) is found with its share; the same
-    force without the clip, reaching as low as 3 % above zero, and a force far from zero, are not."""
+    force without the clip (the linear tyre pulls), scaled to reach as low as 3 % above zero, and a
+    force far from zero, are not."""
     rng = np.random.default_rng(seed)
     n = 20000
     f = _smooth_force(n, rng, 4000.0, 2100.0)
@@ -82,6 +83,7 @@ def test_lift_off_detector_on_synthetic_forces(seed):
     assert 0.01 < share < 0.06
     det = TyreLiftOff("f1").detect(np.maximum(f, 0.0) + 2.0 * rng.standard_normal(n), 2.0)
     assert det is not None and det["interval"][0] <= share <= det["interval"][1]
+    assert TyreLiftOff("f1").detect(f + 2.0 * rng.standard_normal(n), 2.0) is None
     near = 4000.0 + (f - 4000.0) * (4000.0 - 120.0) / (4000.0 - f.min())
     assert TyreLiftOff("f1").detect(near + 2.0 * rng.standard_normal(n), 2.0) is None
     assert TyreLiftOff("f1").detect(_smooth_force(n, rng, 4000.0, 500.0), 2.0) is None

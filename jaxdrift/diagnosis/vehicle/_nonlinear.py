@@ -295,13 +295,16 @@ class TyreLiftOff:
 
     Test: with ``m`` the 0.1 % quantile of the force and ``w = 3 sigma + 0.005 F_s`` (sigma the
     force noise, F_s the static load), the samples in ``[m, m + w]`` must be at least ``MIN_SHARE``
-    of the record and more than ``ATOM_RATIO`` times those in ``[m + w, m + 2 w]``, and ``m`` within
+    of the record in at least ``MIN_STRETCHES`` separate stretches and more than ``ATOM_RATIO``
+    times those in ``[m + w, m + 2 w]``, nothing may lie more than ``w`` below ``m`` (a floor: a
+    force that only dips towards zero goes on below its 0.1 % quantile), and ``m`` must be within
     ``FLOOR_SHARE`` of the static load from zero (a force offset moves the floor)."""
 
     name, unit = "tyre_lift_off", "share of samples"
     MIN_SHARE = 0.003
     ATOM_RATIO = 3.0
     FLOOR_SHARE = 0.15
+    MIN_STRETCHES = 5
 
     def __init__(self, channel: str):
         self.channel = channel
@@ -312,15 +315,17 @@ class TyreLiftOff:
         if fs0 <= 0:
             return None
         m = float(np.quantile(f, 0.001))
-        if abs(m) > self.FLOOR_SHARE * fs0:
-            return None
         w = 3.0 * sigma + 0.005 * fs0
+        if abs(m) > self.FLOOR_SHARE * fs0 or float(f.min()) < m - w:
+            return None
         inside = f <= m + w
         k1 = int(inside.sum())
         k2 = int(((f > m + w) & (f <= m + 2 * w)).sum())
         if k1 < self.MIN_SHARE * len(f) or k1 <= self.ATOM_RATIO * k2:
             return None
         flights = int(np.sum(np.diff(inside.astype(int)) == 1) + inside[0])
+        if flights < self.MIN_STRETCHES:
+            return None
         floor = float(np.median(f[inside]))
         share = k1 / len(f)
         half = 1.96 * share / math.sqrt(max(flights, 1))
