@@ -1,4 +1,4 @@
-"""Bad and unusual inputs to the command line (issue #14): each case's exit code and first message.
+"""Bad and unusual inputs to the command line: each case's exit code and first message.
 
 Writes a run (the road-driven half-car, 4 s at 200 Hz), breaks it in 50 ways, runs the CLI
 in-process on each, and writes the table to benchmarks/results/bad-inputs.md (temporary paths

@@ -1,6 +1,6 @@
 """Cost per path-step against the number of paths per call: jaxdrift and diffrax on the half-car.
 
-Issue #16, session 5, hypothesis 1: a 1 ms step is about 13 XLA kernels on ``(10, paths)`` arrays,
+Hypothesis 1: a 1 ms step is about 13 XLA kernels on ``(10, paths)`` arrays,
 so a fixed cost per kernel (thunk dispatch, the hand-off of a fusion to XLA's intra-op threads)
 weighs more at small batches. This script times the same study as ``benchmarks/throughput.py``
 (half-car, noisy forces at 1 kHz, fixed 1 ms Dormand-Prince 5(4), pitch and heave every 0.1 s)

@@ -1,4 +1,4 @@
-"""Benchmark: ``jaxdrift durability`` on a 60 s, 1 kHz run with 256 Monte-Carlo paths (issue #15's
+"""Benchmark: ``jaxdrift durability`` on a 60 s, 1 kHz run with 256 Monte-Carlo paths (the
 bar: under 2 minutes on 2 cores, with a progress bar).
 
 Generates a run (``jaxdrift.studies.make_run``: class C road, 20 m/s, 15 N force noise, an offset

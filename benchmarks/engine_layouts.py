@@ -1,10 +1,10 @@
-"""What each change of issue #16 gave: the engine's fixed-step loop in its layouts and with either sin/cos.
+"""What each change of the fixed-step loop gave: the engine's fixed-step loop in its layouts and with either sin/cos.
 
 The half-car noisy-force study of ``benchmarks/_setup.py`` (1 ms Dormand-Prince 5(4), forces at
 1 kHz with noise, pitch and heave every 0.1 s), ``--paths`` paths a call (default 256) over
 ``--seconds`` (default 2), on one JAX device, for
 
-* the layout: ``vmap`` batching the per-path loop (paths first, the layout before #16) or the
+* the layout: ``vmap`` batching the per-path loop (paths first, the former layout) or the
   batched loop on ``(n_state, paths)`` arrays (paths last, the default now);
 * sin/cos of the pitch: ``jnp.sin``/``jnp.cos`` or the polynomials of ``jaxdrift.models._trig``
   (the default now);

@@ -1,6 +1,6 @@
 """How fast can any integrator be on the half-car study? The vector field and the noise set a floor.
 
-The throughput targets of issue #4 are ratios of path-steps per second against diffrax on the same
+The throughput targets are ratios of path-steps per second against diffrax on the same
 vector field with the same noisy inputs. Two costs are the same for every contender: drawing the
 noise, and the six evaluations of the model's vector field per Dormand-Prince step (the seventh is
 the next step's first, FSAL). This script measures both inside a full fixed-step run (1 ms steps,

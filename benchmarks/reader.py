@@ -1,4 +1,4 @@
-"""Benchmark: read a 5 million row x 6 column vehicle run (issue #14: < 10 s and < 1 GB peak).
+"""Benchmark: read a 5 million row x 6 column vehicle run (target: < 10 s and < 1 GB peak).
 
 Writes a CSV of ``--rows`` rows (columns t, f1, f2, beta, beta_rate, z3 at 1 kHz, printed with
 shortest round-trip decimals; plausible signals, so that the plausibility checks pass), then reads

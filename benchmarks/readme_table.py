@@ -1,63 +1,60 @@
-"""Write the README's throughput table from ``benchmarks/results/throughput-idle.json``.
+"""Write every quoted number and table in README.md and docs/*.md from its committed result file.
 
-The table sits between the markers ``<!-- throughput-table -->`` and ``<!-- /throughput-table -->``
-in ``README.md``; everything between them is replaced. Run after ``benchmarks/throughput.py``::
+Numbers sit between markers that name their file, key and format (see ``benchmarks/_quoted.py``
+for the syntax), e.g. ``<!-- q:docs/figures/paper/summary.json:headline.drift_off_beta_s.noisy.median:.2f -->7.00<!-- /q -->``;
+tables between ``<!-- NAME -->`` and ``<!-- /NAME -->`` for a renderer registered there (the
+README's throughput table: ``<!-- throughput-table -->``). Run after regenerating a result file::
 
-    python benchmarks/readme_table.py
+    python benchmarks/readme_table.py            # rewrite the markers in place
+    python benchmarks/readme_table.py --check    # compare only; exit 1 and name each difference
+    python benchmarks/readme_table.py --list     # every quoted number: document, line, file, key
+
+``tests/test_quoted_numbers.py`` runs the check.
 """
 
 from __future__ import annotations
 
-import json
+import argparse
 import sys
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-START, END = "<!-- throughput-table -->", "<!-- /throughput-table -->"
-ROWS = (("fixed/jaxdrift", "fixed 1 ms"), ("fixed/jaxdrift-fast", "fixed 1 ms, fast mode (float32 + Kahan)"),
-        ("adaptive/jaxdrift", "adaptive rtol 1e-6"))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _quoted  # noqa: E402
 
 
-def render(res: dict) -> str:
-    cases, cfg = res["cases"], res["config"]
-    lines = [
-        f"Half-car noisy-force study, {cfg['T']:g} s at {cfg['fs']:g} Hz, {cfg['paths']} paths per call, "
-        f"float64 unless noted, {res['machine']['cpu_count']}-core machine (load average "
-        f"{res['machine']['load_average_at_start'][0]:.1f} at start); generated from "
-        "`benchmarks/results/throughput-idle.json` by `python benchmarks/readme_table.py`:",
-        "",
-        "| mode | jaxdrift path-steps/s | vs diffrax Dopri5 | vs scipy RK45 |",
-        "|---|---:|---:|---:|",
-    ]
-    for key, label in ROWS:
-        c = cases.get(key)
-        if c is None:
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--check", action="store_true", help="compare only, write nothing; exit 1 on a difference")
+    ap.add_argument("--list", action="store_true", help="list every quoted number and block")
+    args = ap.parse_args(argv)
+    root = _quoted.ROOT
+    problems, n_q, n_b, changed = [], 0, 0, []
+    for path in _quoted.doc_files(root):
+        rel = str(path.relative_to(root))
+        text = path.read_text()
+        qs = _quoted.quotes(text, rel)
+        n_q += len(qs)
+        n_b += sum(1 for _ in _quoted._blocks(text))
+        if args.list:
+            for q in qs:
+                print(f"{rel}:{q.line}: {q.text} <- {q.file} {q.key}")
+        if args.check or args.list:
+            problems += _quoted.check(text, rel, root)
             continue
-        vs_d = f"{c['vs_diffrax']:.2f}x" if c.get("vs_diffrax") else ""
-        vs_s = f"{c['vs_scipy']:.0f}x" if c.get("vs_scipy") else ""
-        lines.append(f"| {label} | {c['path_steps_per_s']:.3g} | {vs_d} | {vs_s} |")
-    mems = [m for m in (res.get("memory"), res.get("memory_float64")) if m and m.get("peak_rss_bytes")]
-    if mems:
-        m0 = mems[0]
-        lines += ["", f"{m0['paths']:,} paths x {m0['T']:g} s at 1 kHz with statistics every 0.1 s "
-                      f"(chunks of {m0['chunk_size']}), peak RSS: "
-                      + ", ".join(f"{m['mode']} mode {m['peak_rss_bytes'] / 2**30:.2f} GiB in {m['wall_s']:.0f} s"
-                                  for m in mems) + "."]
-    return "\n".join(lines)
-
-
-def main() -> int:
-    res = json.loads((ROOT / "benchmarks" / "results" / "throughput-idle.json").read_text())
-    readme = ROOT / "README.md"
-    text = readme.read_text()
-    if START not in text or END not in text:
-        print(f"README.md has no {START} ... {END} block", file=sys.stderr)
-        return 2
-    head, rest = text.split(START, 1)
-    _, tail = rest.split(END, 1)
-    readme.write_text(head + START + "\n" + render(res) + "\n" + END + tail)
-    print("README.md throughput table updated")
-    return 0
+        try:
+            new = _quoted.rewrite(text, rel, root)
+        except _quoted.QuoteError as e:
+            problems.append(str(e))
+            continue
+        if new != text:
+            path.write_text(new)
+            changed.append(rel)
+    for p in problems:
+        print(p, file=sys.stderr)
+    print(f"{n_q} quoted numbers and {n_b} blocks in {len(_quoted.doc_files(root))} documents"
+          + (f"; rewritten: {', '.join(changed)}" if changed else "")
+          + (f"; {len(problems)} problems" if problems else ""))
+    return 1 if problems else 0
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
-"""What session 5 of issue #16 changed in the fixed-step loop, A/B in one process, interleaved rounds.
+"""What the carried step inputs changed in the fixed-step loop, A/B in one process, interleaved rounds.
 
 Variants of the half-car study (``benchmarks/_setup.py``; 1 ms Dormand-Prince 5(4), forces at
 1 kHz with noise) on ``NDEV`` CPU devices (default 1), ``B`` paths a call over ``T`` seconds:
 
-* ``carry=0 selclip=0``: the loop before session 5: each step computes its time, input samples and
+* ``carry=0 selclip=0``: the former loop: each step computes its time, input samples and
   interpolation weight from the step counter, the weight clipped with ``jnp.clip``;
 * ``selclip=1``: the weight clipped with two selects (``jaxdrift.solvers._inputs._clip01``);
 * ``carry=1``: the step's time and input samples carried from the previous step

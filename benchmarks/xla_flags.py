@@ -1,6 +1,6 @@
 """XLA CPU flags on the half-car study: jaxdrift (float64, fast mode) and diffrax, fresh processes.
 
-Issue #16, session 5, hypothesis 2. Each variant is a set of ``XLA_FLAGS`` (added to the
+Hypothesis 2. Each variant is a set of ``XLA_FLAGS`` (added to the
 environment of a fresh Python process, since XLA reads them once); the variants run alternately,
 ``--rounds`` times each, so that a change of the machine's load hits them alike. Every process
 times, after compiling, ``--reps`` calls of each case (best kept) at ``--paths`` paths per call over

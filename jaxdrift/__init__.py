@@ -16,7 +16,7 @@ __version__ = "0.1.0"
 # public name -> (private module, name in that module)
 _EXPORTS: dict[str, tuple[str, str]] = {}
 
-# --- engine (#2) ---
+# --- engine ---
 _EXPORTS.update({
     "SampledSignal": ("solvers._inputs", "SampledSignal"),
     "solve_sde": ("solvers._sde", "solve_sde"),
@@ -29,7 +29,7 @@ _EXPORTS.update({
     "ButcherTableau": ("solvers._tableau", "ButcherTableau"),
 })
 
-# --- noise and Monte-Carlo runner (#2) ---
+# --- noise and Monte-Carlo runner ---
 _EXPORTS.update({
     "apply_input_effects": ("ensemble._noise", "apply_input_effects"),
     "path_normals": ("ensemble._noise", "path_normals"),
@@ -39,7 +39,7 @@ _EXPORTS.update({
     "monte_carlo": ("ensemble._montecarlo", "monte_carlo"),
 })
 
-# --- models and paper study (#3) ---
+# --- models and paper study ---
 _EXPORTS.update({
     "contact_forces": ("models._halfcar", "contact_forces"),
     "enforced_moment": ("models._halfcar", "enforced_moment"),
@@ -84,7 +84,7 @@ _EXPORTS.update({
     "write_paper_outputs": ("studies._paper_plots", "write_paper_outputs"),
 })
 
-# --- variance (#4) ---
+# --- variance ---
 _EXPORTS.update({
     "solve_fixed_fast": ("solvers._fast", "solve_fixed_fast"),
     "CovarianceResult": ("analysis._variance", "CovarianceResult"),
@@ -100,7 +100,7 @@ _EXPORTS.update({
     "variance_interval": ("analysis._variance", "variance_interval"),
 })
 
-# --- diagnosis (#5) ---
+# --- diagnosis ---
 _EXPORTS.update({
     "InputError": ("io._csvio", "InputError"),
     "VehicleRun": ("io._csvio", "VehicleRun"),
@@ -112,7 +112,7 @@ _EXPORTS.update({
     "diagnose_vehicle_run": ("diagnosis.vehicle._pipeline", "diagnose_vehicle_run"),
 })
 
-# --- attitude (#6) ---
+# --- attitude ---
 _EXPORTS.update({
     "check_positions": ("models._accel_array", "check_positions"),
     "consistency_residual": ("models._accel_array", "consistency_residual"),
@@ -132,7 +132,7 @@ _EXPORTS.update({
     "rotation_matrix": ("models._quaternion", "rotation_matrix"),
 })
 
-# --- durability (#15) ---
+# --- durability ---
 _EXPORTS.update({
     "DurabilityResult": ("durability._analysis", "DurabilityResult"),
     "durability_analysis": ("durability._analysis", "durability_analysis"),
@@ -142,7 +142,7 @@ _EXPORTS.update({
     "pseudo_damage": ("durability._damage", "pseudo_damage"),
 })
 
-# --- the engine against the machine's limit (#16) ---
+# --- the engine against the machine's limit ---
 _EXPORTS.update({
     "use_all_cores": ("ensemble._devices", "use_all_cores"),
 })

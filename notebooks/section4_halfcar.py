@@ -70,7 +70,7 @@ print("rhs at rest:", np.abs(np.asarray(jaxdrift.force_driven_rhs(0.0, x0, param
 if SMALL:
     cfg = jaxdrift.StudyConfig(params=params, duration=3.0, n_noise=2, n_models=2, n_compare=2, n_spring=1,
                                pitch_spring_stiffness=(1e3,), compare_solvers=(jaxdrift.SOLVER_LOOSE,),
-                               progress=False)
+                               rounding_check=False, progress=False)
 else:
     cfg = jaxdrift.StudyConfig(params=params)
 res = jaxdrift.run_paper_study(cfg)

@@ -1,5 +1,5 @@
 """Hidden attitude causes on runs of the independent generator (benchmarks/independent/gen_attitude.py),
-for what issue #13's attitude sweeps missed: a gyro bias without any white gyro noise, a displaced
+for what the independent attitude sweeps missed: a gyro bias without any white gyro noise, a displaced
 sensor next to a deformation, and an accelerometer-noise-only rigid array (no false alarm).
 
 The seeds (9101-9103) were not used while tuning the detectors (tuning used design seeds 31, 777,

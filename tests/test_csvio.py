@@ -86,7 +86,7 @@ def test_extra_column_is_a_warning(tmp_path):
 
 @pytest.mark.parametrize("name,hint", [("Beta_rate", "beta_rate"), ("bta", "beta")])
 def test_column_close_to_a_known_name_is_an_error(tmp_path, capsys, name, hint):
-    """A typo in an optional column must not silently drop it (issue #14): exit 2 with a hint;
+    """A typo in an optional column must not silently drop it: exit 2 with a hint;
     --force makes it a warning and the column is ignored."""
     cols = _good_columns()
     cols[name] = cols.pop("beta")

@@ -137,7 +137,7 @@ def test_array_nonrigid_and_clean(tmp_path):
 
 
 def test_array_accel_noise_is_named_and_sized_not_nonrigid(tmp_path):
-    """Issue #13 item 6: white accelerometer noise on a rigid array is ``accel_noise``, not ``nonrigid``."""
+    """White accelerometer noise on a rigid array is ``accel_noise``, not ``nonrigid``."""
     sigma = 0.02
     tr, rep = _diag(tmp_path, 116, arw=4e-4, accel_noise=sigma, duration=25.0, rate_hz=250.0,
                     positions=DEFAULT_POSITIONS[[0, 1, 3, 4]])
@@ -450,7 +450,7 @@ def test_white_rigidity_power_separates_white_from_smooth():
 
 
 def test_noise_free_array_position_interval_has_the_method_floor(tmp_path):
-    """Issue #13: a noise-free array (9 written digits) next to a gyro scale. The displaced sensor's
+    """A noise-free array (9 written digits) next to a gyro scale. The displaced sensor's
     interval must hold the truth although no noise sets its width: the method part (written resolution,
     the upstream scale's uncertainty, the fit's stopping step) is its floor; apparent displacements of
     the other sensors of a few 1e-8 m lie below that floor and are not reported."""

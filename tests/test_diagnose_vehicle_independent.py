@@ -1,4 +1,4 @@
-"""Vehicle diagnosis on runs it was not tuned on (issue #13).
+"""Vehicle diagnosis on runs it was not tuned on.
 
 The runs come from ``generators_scipy`` (scipy LSODA on the seed's equations, its own road), not
 from ``jaxdrift.studies._rungen`` which the detectors were developed on, with a van (a != b, heavier,

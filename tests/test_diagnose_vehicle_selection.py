@@ -1,5 +1,5 @@
 """Vehicle diagnosis with white sensor noise on the measured motion, and selections that forward
-selection alone gets wrong (issue #13).
+selection alone gets wrong.
 
 Runs from the independent generator (``benchmarks/independent/gen_vehicle.py``: scipy DOP853, its
 own ISO 8608 road, vehicles other than the seed's), with seeds not used for tuning (the diagnosis

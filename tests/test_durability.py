@@ -1,4 +1,4 @@
-"""Durability (issue #15): rainflow damage against ASTM E1049-85 and fatpack, the derivative filter,
+"""Durability: rainflow damage against ASTM E1049-85 and fatpack, the derivative filter,
 the pitch-spring and step rules, the section forces against generated runs whose true section
 forces are known, the Monte-Carlo noise band, and the command line."""
 

@@ -5,7 +5,7 @@ stated statistical bound); jaxdrift's half-car right-hand side and static equili
 effect-free case (an oracle for the generator only, never the other way round); finite
 differences for the quaternion kinematics and the body acceleration; the data contract
 (docs/measured-data.md) for columns, units, digits, the time grid and the truth's names.
-The marked-slow test runs a small sweep and asserts the targets of issue #13.
+The marked-slow test runs a small sweep and asserts the diagnosis's targets (docs/validation.md).
 """
 
 from __future__ import annotations
@@ -311,7 +311,7 @@ def test_scorer_rules():
 @pytest.mark.slow
 @pytest.mark.parametrize("kind,n", [("vehicle", 14), ("attitude", 10)])
 def test_small_sweep_meets_issue_targets(tmp_path, kind, n):
-    """A small sweep (seed 777, not the committed one) against the targets of issue #13."""
+    """A small sweep (seed 777, not the committed one) against the diagnosis's targets (docs/validation.md)."""
     sw.main(["--kind", kind, "--n", str(n), "--seed", "777", "--out", str(tmp_path), "--jobs", "1"])
     with open(tmp_path / f"{kind}.json") as fh:
         s = json.load(fh)

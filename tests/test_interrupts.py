@@ -1,5 +1,5 @@
 """Ctrl-C (SIGINT) on the real command line: exit 130 with one line, no crash, nothing half-written,
-at any moment: in the first second (the segmentation faults of issue #14 came from interrupting
+at any moment: in the first second (segmentation faults came from interrupting
 JAX/XLA compilation), mid-run, and while the results are being written.
 
 Each case starts ``python -m jaxdrift`` in a subprocess and sends SIGINT when the moment is

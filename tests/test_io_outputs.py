@@ -1,4 +1,4 @@
-"""Outputs never lose data (issue #14): an output equal to an input is refused, every output is
+"""Outputs never lose data: an output equal to an input is refused, every output is
 checked before computing, writes are atomic, an OSError is exit 2 with the path; every report
 says what made it (provenance); ``--series``; -q/-v and one-line warnings."""
 

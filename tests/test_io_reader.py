@@ -1,4 +1,4 @@
-"""The one reader (issue #14): formats, --map/--units/--fs, the printed resolution of t, the
+"""The one reader: formats, --map/--units/--fs, the printed resolution of t, the
 plausibility checks (unit mistakes exit 2 before computing, naming the column), MDF4 and Parquet.
 
 The reference for every conversion is the same run written in SI by ``write_vehicle_run``

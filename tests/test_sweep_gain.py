@@ -1,4 +1,4 @@
-"""The independent sweep's "gains confirmed by re-simulation" (issue #13).
+"""The independent sweep's "gains confirmed by re-simulation".
 
 ``sweep.gain_measure`` on synthetic per-run results with known gains (the counts, the median ratio,
 the runs not confirmed, the effect-free check), and one small generated run with a large systematic

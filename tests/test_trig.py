@@ -56,3 +56,16 @@ def test_sincos_integer_input_is_float():
     s, c = sincos(jnp.arange(3))
     assert jnp.issubdtype(s.dtype, jnp.floating)
     np.testing.assert_allclose(np.asarray(s), np.sin(np.arange(3.0)), atol=1e-15)
+
+
+def test_plain_trig_switch():
+    """``plain_trig`` swaps the polynomials for jnp.sin/jnp.cos, also in a function jitted before."""
+    from jaxdrift.models._trig import plain_trig
+
+    f = jax.jit(lambda x: sincos(x)[0])
+    x = jnp.linspace(-10.0, 10.0, 1001)
+    poly = np.asarray(f(x))
+    assert (poly != np.asarray(jnp.sin(x))).any()  # the polynomials differ in the last bits
+    with plain_trig():
+        np.testing.assert_array_equal(np.asarray(f(x)), np.asarray(jnp.sin(x)))
+    np.testing.assert_array_equal(np.asarray(f(x)), poly)

@@ -29,7 +29,7 @@ Examples::
 
     python benchmarks/independent/sweep.py --kind vehicle --n 20 --seed 1 --out /tmp/sw --jobs 2
     python benchmarks/independent/sweep.py --kind attitude --n 100 --seed 20261201 \\
-        --out docs/validation --prefix before- --jobs 1
+        --out docs/validation --prefix "$(git rev-parse --short HEAD)-" --jobs 1
 """
 
 from __future__ import annotations
@@ -557,7 +557,8 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, required=True, help="design seed")
     ap.add_argument("--out", required=True, help="folder for the summary (and cache/ unless --cache)")
     ap.add_argument("--cache", help="folder of per-run results (default OUT/cache/<kind>-<seed>)")
-    ap.add_argument("--prefix", default="", help="prefix of the summary files, e.g. 'before-'")
+    ap.add_argument("--prefix", default="", help="prefix of the summary files; the committed ones are named by the commit that diagnosed them, "
+                    "e.g. '20e4450-'")
     ap.add_argument("--design", choices=("standard", "nonlinear"), default="standard",
                     help="vehicle: the stratified design of today's causes, or the nonlinear suspension "
                          "design (gen_vehicle.design_nonlinear: effect-free runs, nonlinear effects alone "

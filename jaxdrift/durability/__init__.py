@@ -1,5 +1,5 @@
 """Durability: section forces of the simulation variants, their fatigue pseudo-damage and its
-noise band (issue #15; ``docs/durability.md``). May import models, analysis, solvers, ensemble,
+noise band (``docs/durability.md``). May import models, analysis, solvers, ensemble,
 io, diagnosis and studies (it reuses the paper study's simulations); only the CLI imports it.
 """
 

@@ -38,7 +38,7 @@ def _prefer_wide_vectors() -> bool:
     Only before JAX creates its CPU backend (XLA reads ``XLA_FLAGS`` then), only when the CPU has
     AVX-512 and only when ``XLA_FLAGS`` does not already choose a width (the user's choice stands;
     ``XLA_FLAGS=--xla_cpu_prefer_vector_width=256`` keeps XLA's default). Measured on the half-car
-    study (2-core AMD EPYC, issue #16, ``docs/performance.md``): 1.4x less CPU time per path-step
+    study (2-core AMD EPYC, ``docs/performance.md``): 1.4x less CPU time per path-step
     for the engine and the fast mode, results bit-identical. Returns whether the flag was added.
     """
     from jax._src import xla_bridge

@@ -19,16 +19,23 @@ float32 within 3 ulp for ``|x| <= 1e3`` (2.6 measured). The error of the reducti
 the rounding of ``lo``); beyond ``|x| = 2^30`` the quadrant index overflows. A pitch angle lives
 far inside both ranges. Derivatives: ``round`` has derivative zero, so the derivative is that of
 the polynomials, which approximate ``cos`` and ``-sin`` to the same order.
+
+:func:`plain_trig` (a context manager, for checks) makes :func:`sincos` return ``jnp.sin`` and
+``jnp.cos`` instead: results that change by more than rounding between the two depend on the last
+bits of the arithmetic (the paper study's headline is checked this way).
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["sincos"]
+__all__ = ["sincos", "plain_trig"]
+
+_PLAIN = [False]  # set by plain_trig; read when a function is traced
 
 
 def _split(bits: int, parts: int, dtype) -> tuple[float, ...]:
@@ -60,6 +67,8 @@ def sincos(x):
     x = jnp.asarray(x)
     if not jnp.issubdtype(x.dtype, jnp.floating):
         x = x.astype(jnp.result_type(float))
+    if _PLAIN[0]:
+        return jnp.sin(x), jnp.cos(x)
     key = np.dtype(x.dtype) if np.dtype(x.dtype) in _PIO2 else np.dtype(np.float64)
     n_sin, n_cos = _TERMS[key]
     k = jnp.round(x * (2.0 / math.pi))
@@ -81,3 +90,21 @@ def sincos(x):
     s = jnp.where(q >= 2, -s, s)  # quadrants 2, 3: sin negative
     c = jnp.where((q == 1) | (q == 2), -c, c)  # quadrants 1, 2: cos negative
     return s, c
+
+
+@contextlib.contextmanager
+def plain_trig():
+    """Within the block, :func:`sincos` is ``(jnp.sin(x), jnp.cos(x))``.
+
+    JAX's compilation caches are cleared on entry and on exit, so that functions compiled with
+    the polynomials are traced again (and those compiled inside are not reused after).
+    """
+    import jax
+
+    jax.clear_caches()
+    _PLAIN[0] = True
+    try:
+        yield
+    finally:
+        _PLAIN[0] = False
+        jax.clear_caches()

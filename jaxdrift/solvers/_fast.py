@@ -119,7 +119,7 @@ def solve_fixed_fast(
         unroll: steps per iteration of the compiled loop (``lax.scan``'s ``unroll``). Default 1:
             with the step's input samples carried from the previous step (``_CARRY_STEP_ARGS``),
             1 measured 56 against 115 CPU ns per path-step for 5 (half-car, float32, 256 paths,
-            ``docs/performance.md``, session 5): inside an unrolled iteration XLA fuses the
+            ``docs/performance.md``): inside an unrolled iteration XLA fuses the
             counter-dependent input reads back into the vector field's kernels, which then do not
             vectorise. (Before that change 5 was faster than 1.)
 
@@ -185,14 +185,14 @@ class _Loop(NamedTuple):
 
 
 #: Carry each step's time and grid-aligned input samples from the previous step (True) instead of
-#: computing them from the step counter inside the step (False: before session 5 of issue #16).
+#: computing them from the step counter inside the step (False: the former loop, kept for the A/B benchmark).
 #: XLA's CPU backend fuses the counter-dependent slice and interpolation weight into every row of
 #: the vector field that reads an input, and loads the counter there without the invariance
 #: marking its other operands get; LLVM then left those loops unvectorised (one path at a time).
 _CARRY_STEP_ARGS = True
 
 #: Under vmap, run the batched loop on (n, paths) arrays (True) or let vmap batch the per-path
-#: loop, paths first (False: the layout before issue #16, kept for benchmarks/engine_layouts.py).
+#: loop, paths first (False: the former layout, kept for benchmarks/engine_layouts.py).
 _PATHS_LAST = True
 
 

@@ -90,7 +90,7 @@ def _clip01(s):
     emits as ``llvm.maximum``/``llvm.minimum``; LLVM does not vectorise a loop containing them. The
     interpolation weight of a step is a scalar, but XLA fuses it into the loop over the paths of
     every row of the vector field that reads an input, and that loop then ran one path at a time
-    (issue #16, ``docs/performance.md``). With selects the loop vectorises.
+    (``docs/performance.md``). With selects the loop vectorises.
     """
     return jnp.where(s < 0.0, jnp.zeros_like(s), jnp.where(s > 1.0, jnp.ones_like(s), s))
 

@@ -12,7 +12,7 @@ import math
 import jax.numpy as jnp
 import numpy as np
 
-__all__ = ["drift_off_time"]
+__all__ = ["drift_off_time", "solver_agreement"]
 
 
 def drift_off_time(ts, error, threshold) -> float:
@@ -34,6 +34,31 @@ def _stats(x) -> dict:
         out.update(min=float(fin.min()), median=q(0.5), max=float(fin.max()), q10=q(0.1), q90=q(0.9))
     else:
         out.update(min=None, median=None, max=None, q10=None, q90=None)
+    return out
+
+
+def solver_agreement(table: list[dict], reference: str = "dopri5 fixed 1 ms") -> list[dict]:
+    """Each solver of the comparison against ``reference`` (when present), sample by sample: the
+    largest |difference| of the noisy drift-off times (paths that never drift off in one of the
+    two count as infinitely far), how many agree within 0.05 s, and the difference of the
+    undisturbed and the paper-perturbed drift-off times."""
+    ref = next((r for r in table if r["solver"] == reference), None)
+    if ref is None:
+        return []
+    out = []
+
+    def diff(a, b):
+        a, b = float(a), float(b)
+        return 0.0 if a == b else abs(a - b)  # equal infinities agree
+
+    for r in table:
+        if r is ref:
+            continue
+        d = [diff(a, b) for a, b in zip(r["noisy_drift_off_s"], ref["noisy_drift_off_s"])]
+        out.append(dict(solver=r["solver"], reference=reference, n=len(d), noisy_max_abs_s=max(d),
+                        noisy_n_within_0_05_s=int(sum(x <= 0.05 for x in d)),
+                        undisturbed_abs_s=diff(r["undisturbed_drift_off_s"], ref["undisturbed_drift_off_s"]),
+                        perturbed_paper_abs_s=diff(r["perturbed_paper_drift_off_s"], ref["perturbed_paper_drift_off_s"])))
     return out
 
 
@@ -159,6 +184,7 @@ def _summarise(cfg, vm, save_ts, beta_ref, z3_ref, sigma, fmax, main, kinds, sta
         enforced_moment_Nm=moment,
         pitch_spring=spring,
         solver_comparison=table,
+        solver_agreement=solver_agreement(table),
         failed_paths=dict(force=int(main.n_failed), stabilised=int(stab.n_failed)),
     )
     return _clean(summary)
