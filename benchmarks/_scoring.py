@@ -13,6 +13,20 @@ def _target(d: dict) -> tuple:
     return d["cause"], d.get("channel", d.get("parameter"))
 
 
+_AXLE = {"k3": "front", "d3": "front", "f1": "front", "k4": "rear", "d4": "rear", "f2": "rear"}
+_NONLINEAR = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
+
+
+def _as_truth(f: dict, truth: set) -> tuple:
+    """A ``model_form`` finding counts as the nonlinear effect on its axle (it names what the linear
+    model cannot explain there without forcing it into a candidate)."""
+    if f["cause"] == "model_form":
+        for t in truth:
+            if t[0] in _NONLINEAR and _AXLE.get(t[1]) == f.get("axle"):
+                return t
+    return _target(f)
+
+
 def score_report(report: dict, effects) -> dict:
     """How well a diagnosis report recovers the hidden ``effects`` (tests and sweeps).
 
@@ -24,8 +38,8 @@ def score_report(report: dict, effects) -> dict:
     interval. Returns ``{"first", "covered", "total", "misses"}`` (misses: readable lines).
     """
     findings = report["findings"]
-    got = [_target(f) for f in findings]
     truth = {_target(e) for e in effects if e["cause"] != "force_noise"}
+    got = [_as_truth(f, truth) for f in findings]
     head = findings[: max(len(truth), 1) + 1]
     alts = {_target(a) for f in head for a in f.get("indistinguishable_from", [])}
     first = truth <= set(got[: len(truth) + 1]) | alts

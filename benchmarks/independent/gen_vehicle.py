@@ -71,6 +71,13 @@ SINGLES = [(c, ch) for c in ("force_offset", "force_scale", "force_delay") for c
     [("parameter_error", p) for p in PARAMS]
 #: every pair of systematic cause types (same type: the two channels, or two parameters)
 PAIRS = [(SYSTEMATIC[i], SYSTEMATIC[j]) for i in range(4) for j in range(i, 4)]
+#: nonlinear suspension effects outside the linear model (``design_nonlinear``): an asymmetric
+#: damper (rebound/compression ratio), a progressive spring (cubic term), a bump stop, tyre lift-off
+NONLINEAR = [("damper_asymmetry", "d3"), ("damper_asymmetry", "d4"), ("progressive_spring", "k3"),
+             ("progressive_spring", "k4"), ("bump_stop", "k3"), ("bump_stop", "k4"),
+             ("tyre_lift_off", "f1"), ("tyre_lift_off", "f2")]
+#: the sensor effects a nonlinear effect is paired with
+SENSOR = [(c, ch) for c in ("force_offset", "force_scale", "force_delay") for ch in ("f1", "f2")]
 
 
 # ----------------------------------------------------------------------------- road
@@ -182,39 +189,87 @@ def equilibrium(p: dict) -> np.ndarray:
     return np.array([z1, z2, z3, math.asin(sb), 0.0, 0.0, 0.0, 0.0])
 
 
-def _rhs_factory(p: dict, road: FilteredRoad, v: float, x0: float):
+def _suspension_law(p: dict, nl: dict | None):
+    """The chassis spring-damper forces ``(f3, f4)`` as functions of (travel, rate) per axle.
+
+    ``nl`` holds the nonlinear suspension effects, each about the static travel ``s0`` so the
+    static equilibrium stays the linear one: ``damper_asymmetry`` (rebound/compression damping
+    ratio rho, mean damping the model's: compression 2 d / (1 + rho), rebound rho times that),
+    ``progressive_spring`` (``k (u + c u^3)``, u = s - s0), ``bump_stop`` (``k_b max(u - u_b, 0)``
+    added in compression). Keys ``"d3"``/``"d4"``/``"k3"``/``"k4"`` select the axle."""
+    g = p["g"]
+    s0 = (p["m3"] * g * p["a"] / (p["a"] + p["b"]) / p["k3"], p["m3"] * g * p["b"] / (p["a"] + p["b"]) / p["k4"])
+    laws = []
+    for i, (k, d) in enumerate(((p["k3"], p["d3"]), (p["k4"], p["d4"]))):
+        rho = (nl or {}).get(("damper_asymmetry", ("d3", "d4")[i]))
+        cub = (nl or {}).get(("progressive_spring", ("k3", "k4")[i]))
+        stop = (nl or {}).get(("bump_stop", ("k3", "k4")[i]))
+        dc = d if rho is None else 2.0 * d / (1.0 + rho)
+        dr = d if rho is None else rho * dc
+        c = 0.0 if cub is None else cub
+        kb, ub = (0.0, 0.0) if stop is None else stop
+
+        def law(s, ds, k=k, dc=dc, dr=dr, c=c, kb=kb, ub=ub, s0=s0[i]):
+            u = s - s0
+            f = k * s + (dc if ds > 0.0 else dr) * ds
+            if c:
+                f += k * c * u * u * u
+            if kb and u > ub:
+                f += kb * (u - ub)
+            return f
+        laws.append(law)
+    return laws
+
+
+def _rhs_factory(p: dict, road: FilteredRoad, v: float, x0: float, nl: dict | None = None, scale: float = 1.0):
     a, b, m1, m2, m3, I = p["a"], p["b"], p["m1"], p["m2"], p["m3"], p["I"]
     k1, k2, k3, k4, d1, d2, d3, d4, g = (p[k] for k in ("k1", "k2", "k3", "k4", "d1", "d2", "d3", "d4", "g"))
     L = a + b
     sin, cos = math.sin, math.cos
+    law3, law4 = _suspension_law(p, nl)
+    linear = not nl
+    lift = tuple((nl or {}).get("lift_off", ()))
 
     def rhs(t, y):
         z1, z2, z3, be, v1, v2, v3, vb = y
         x1 = x0 + v * t
         e1, de1 = road(x1)
         e2, de2 = road(x1 - L)
+        if scale != 1.0:
+            e1, de1, e2, de2 = scale * e1, scale * de1, scale * e2, scale * de2
         f1 = k1 * (z1 - e1) + d1 * (v1 - v * de1)
         f2 = k2 * (z2 - e2) + d2 * (v2 - v * de2)
+        if lift:  # the lifting tyre cannot pull
+            f1 = max(f1, 0.0) if "f1" in lift else f1
+            f2 = max(f2, 0.0) if "f2" in lift else f2
         sb, cb = sin(be), cos(be)
-        f3 = k3 * (z3 - z1 - b * sb) + d3 * (v3 - v1 - b * vb * cb)
-        f4 = k4 * (z3 - z2 + a * sb) + d4 * (v3 - v2 + a * vb * cb)
+        if linear:
+            f3 = k3 * (z3 - z1 - b * sb) + d3 * (v3 - v1 - b * vb * cb)
+            f4 = k4 * (z3 - z2 + a * sb) + d4 * (v3 - v2 + a * vb * cb)
+        else:
+            f3 = law3(z3 - z1 - b * sb, v3 - v1 - b * vb * cb)
+            f4 = law4(z3 - z2 + a * sb, v3 - v2 + a * vb * cb)
         return [v1, v2, v3, vb, g + (f3 - f1) / m1, g + (f4 - f2) / m2, g - (f3 + f4) / m3,
                 cb * (b * f3 - a * f4) / I]
 
     return rhs
 
 
-def simulate(p: dict, road: FilteredRoad, v: float, x0: float, t_end: float, rtol=1e-10, atol=1e-12):
-    """Dense solution of the road-driven half-car on [0, t_end] (t = 0: static equilibrium)."""
-    sol = solve_ivp(_rhs_factory(p, road, v, x0), (0.0, t_end), equilibrium(p), method="DOP853",
+def simulate(p: dict, road: FilteredRoad, v: float, x0: float, t_end: float, rtol=1e-10, atol=1e-12,
+             nl: dict | None = None, scale: float = 1.0):
+    """Dense solution of the road-driven half-car on [0, t_end] (t = 0: static equilibrium);
+    ``nl``: nonlinear suspension effects (see ``_suspension_law``), ``scale``: road height factor."""
+    sol = solve_ivp(_rhs_factory(p, road, v, x0, nl, scale), (0.0, t_end), equilibrium(p), method="DOP853",
                     rtol=rtol, atol=atol, dense_output=True)
     if not sol.success:
         raise RuntimeError(f"solve_ivp failed: {sol.message}")
     return sol
 
 
-def signals(p: dict, road: FilteredRoad, v: float, x0: float, sol, tau: np.ndarray) -> dict:
-    """True signals at times ``tau`` (times <= 0 give the static state)."""
+def signals(p: dict, road: FilteredRoad, v: float, x0: float, sol, tau: np.ndarray, scale: float = 1.0,
+            lift: tuple = ()) -> dict:
+    """True signals at times ``tau`` (times <= 0 give the static state); ``scale`` multiplies the
+    road heights, ``lift``: the tyre forces (f1, f2) that cannot pull (clipped at 0)."""
     y = np.empty((len(tau), 8))
     neg = tau <= 0.0
     y[neg] = equilibrium(p)
@@ -223,12 +278,16 @@ def signals(p: dict, road: FilteredRoad, v: float, x0: float, sol, tau: np.ndarr
     x1 = x0 + v * np.maximum(tau, 0.0)
     e1, de1 = np.array([road(float(x)) for x in x1]).T
     e2, de2 = np.array([road(float(x) - p["a"] - p["b"]) for x in x1]).T
-    de1 = np.where(neg, 0.0, de1)
-    de2 = np.where(neg, 0.0, de2)
+    de1 = np.where(neg, 0.0, de1) * scale
+    de2 = np.where(neg, 0.0, de2) * scale
+    e1, e2 = e1 * scale, e2 * scale
     sb = np.sin(y[:, 3])
+    f1 = p["k1"] * (y[:, 0] - e1) + p["d1"] * (y[:, 4] - v * de1)
+    f2 = p["k2"] * (y[:, 1] - e2) + p["d2"] * (y[:, 5] - v * de2)
+    f1 = np.maximum(f1, 0.0) if "f1" in lift else f1
+    f2 = np.maximum(f2, 0.0) if "f2" in lift else f2
     return {
-        "f1": p["k1"] * (y[:, 0] - e1) + p["d1"] * (y[:, 4] - v * de1),
-        "f2": p["k2"] * (y[:, 1] - e2) + p["d2"] * (y[:, 5] - v * de2),
+        "f1": f1, "f2": f2,
         "z1": y[:, 0], "z2": y[:, 1], "z3": y[:, 2], "beta": y[:, 3], "beta_rate": y[:, 7],
         "s1": y[:, 2] - y[:, 0] - p["b"] * sb, "s2": y[:, 2] - y[:, 1] + p["a"] * sb,
         "zeta1": e1, "zeta2": e2,
@@ -254,6 +313,17 @@ def draw_effect(rng, cause: str, target: str | None, p: dict) -> dict:
         return {"cause": cause, "channel": target, "value": sign * _loguniform(rng, 1e-4, 1e-2)}
     if cause == "parameter_error":
         return {"cause": cause, "parameter": target, "value": 1.0 + sign * _loguniform(rng, 5e-3, 0.2)}
+    # nonlinear suspension effects at sizes engineers meet; the physical size of the last three
+    # depends on the run's travel and is set by ``generate`` (a linear pre-run on the same road)
+    if cause == "damper_asymmetry":  # rebound/compression ratio in 0.6-1.6 (1 is no effect)
+        return {"cause": cause, "parameter": target, "value": _loguniform(rng, 1.15, 1.6) ** sign}
+    if cause == "progressive_spring":  # stiffness +20-100 % at the run's 99th-percentile travel
+        return {"cause": cause, "parameter": target, "stiffening": float(rng.uniform(0.2, 1.0))}
+    if cause == "bump_stop":  # reached on 1-5 % of the samples, 3-10x the spring's stiffness
+        return {"cause": cause, "parameter": target, "share": float(rng.uniform(0.01, 0.05)),
+                "ratio": float(rng.uniform(3.0, 10.0))}
+    if cause == "tyre_lift_off":  # the road scaled so the tyre leaves it on 1-5 % of the samples
+        return {"cause": cause, "channel": target, "share": float(rng.uniform(0.01, 0.05))}
     raise ValueError(cause)
 
 
@@ -274,6 +344,26 @@ def design(n: int, seed: int) -> list[dict]:
         kind, what = plan[j]
         cases.append({"index": i, "stratum": kind, "what": [list(w) if isinstance(w, tuple) else w for w in what],
                       "seed": int(rng.integers(2**31))})
+    return cases
+
+
+def design_nonlinear(n: int, seed: int, free_share: float = 0.4) -> list[dict]:
+    """``n`` cases for the nonlinear suspension: ``free_share`` effect-free (half without, half
+    with force noise), the rest 60 % one nonlinear effect (cycling through ``NONLINEAR``) and 40 %
+    a nonlinear effect paired with a sensor effect (cycling through ``SENSOR``); shuffled."""
+    n_free = round(free_share * n)
+    n_single = round(0.6 * (n - n_free))
+    n_pair = n - n_free - n_single
+    plan = [("clean", ())] * (n_free // 2) + [("noise", ())] * (n_free - n_free // 2)
+    plan += [("single", (NONLINEAR[i % len(NONLINEAR)],)) for i in range(n_single)]
+    plan += [("pair", (NONLINEAR[(3 * i + 1) % len(NONLINEAR)], SENSOR[i % len(SENSOR)])) for i in range(n_pair)]
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(plan))
+    cases = []
+    for i, j in enumerate(order):
+        kind, what = plan[j]
+        cases.append({"index": i, "stratum": kind, "what": [list(w) for w in what],
+                      "seed": int(rng.integers(2**31)), "design": "nonlinear"})
     return cases
 
 
@@ -298,6 +388,8 @@ def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500,
     effects = []
     if case["stratum"] == "single":
         effects.append(draw_effect(rng, *case["what"][0], nominal))
+    elif case["stratum"] == "pair" and case.get("design") == "nonlinear":
+        effects += [draw_effect(rng, *w, nominal) for w in case["what"]]
     elif case["stratum"] == "pair":
         c1, c2 = case["what"]
         if c1 == c2 and c1 != "parameter_error":
@@ -337,20 +429,66 @@ def true_vehicle(case: dict) -> dict:
     return p
 
 
+NONLINEAR_CAUSES = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
+
+
+def _size_nonlinear(case: dict, p: dict, road, v: float, x0: float, tau: np.ndarray):
+    """Set the physical size of the nonlinear effects from a linear pre-run on the same road (in
+    place: the truth file then holds them); returns (nl, road scale, lift-off)."""
+    nl_eff = [e for e in case["effects"] if e["cause"] in NONLINEAR_CAUSES]
+    if not nl_eff:
+        return None, 1.0, ()
+    # only the drawn tyre lifts off (the other keeps the linear law, as in every other run)
+    lift = tuple(e["channel"] for e in nl_eff if e["cause"] == "tyre_lift_off")
+    pre = signals(p, road, v, x0, simulate(p, road, v, x0, case["duration"] + 1e-9), tau)
+    scale = 1.0
+    for e in nl_eff:
+        if e["cause"] == "tyre_lift_off":
+            ch = e["channel"]
+            dyn = pre[ch] - pre[ch][0]
+            # road heights x scale: the force's dynamic part scales with them (linear model)
+            scale = float(pre[ch][0] / max(-np.quantile(dyn, e["share"]), 1e-9))
+            e["road_scale"] = scale
+    nl = {"lift_off": lift}
+    s0 = (p["m3"] * p["g"] * p["a"] / (p["a"] + p["b"]) / p["k3"],
+          p["m3"] * p["g"] * p["b"] / (p["a"] + p["b"]) / p["k4"])
+    for e in nl_eff:
+        if e["cause"] == "damper_asymmetry":
+            nl[(e["cause"], e["parameter"])] = e["value"]
+        elif e["cause"] in ("progressive_spring", "bump_stop"):
+            i = 0 if e["parameter"] == "k3" else 1
+            u = scale * (pre[f"s{i + 1}"] - s0[i])
+            if e["cause"] == "progressive_spring":  # 3 c u99^2 = stiffening
+                u99 = float(np.quantile(np.abs(u), 0.99))
+                e["value"] = e["stiffening"] / (3.0 * u99 * u99)
+                e["travel_99"] = u99
+                nl[(e["cause"], e["parameter"])] = e["value"]
+            else:
+                ub = float(np.quantile(u, 1.0 - e["share"]))
+                e["value"] = e["ratio"] * p[e["parameter"]]
+                e["travel"] = ub
+                nl[(e["cause"], e["parameter"])] = (e["value"], ub)
+    return nl, scale, lift
+
+
 def generate(case: dict) -> tuple[dict, dict]:
     """(columns of the measured run, true signals) for a drawn case."""
     p = true_vehicle(case)
     v, fs, T = case["speed"], case["fs"], case["duration"]
     x0 = -v * case["lead_in"]  # the front wheel reaches the rough road after the lead-in
     road = FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.1) + 1.0)
-    sol = simulate(p, road, v, x0, T + 1e-9)
     n = int(round(T * fs)) + 1
     tau = np.arange(n) / fs
-    true = signals(p, road, v, x0, sol, tau)
+    nl, scale, lift = _size_nonlinear(case, p, road, v, x0, tau)
+    sol = simulate(p, road, v, x0, T + 1e-9, nl=nl, scale=scale)
+    true = signals(p, road, v, x0, sol, tau, scale, lift)
+    for e in case["effects"]:
+        if e["cause"] == "tyre_lift_off":  # the share of samples the tyre actually spends in the air
+            e["value"] = float(np.mean(true[e["channel"]] <= 0.0))
     meas = {"f1": true["f1"].copy(), "f2": true["f2"].copy()}
     for e in case["effects"]:
         if e["cause"] == "force_delay":
-            meas[e["channel"]] = signals(p, road, v, x0, sol, tau - e["value"])[e["channel"]]
+            meas[e["channel"]] = signals(p, road, v, x0, sol, tau - e["value"], scale, lift)[e["channel"]]
     for e in case["effects"]:
         if e["cause"] == "force_scale":
             meas[e["channel"]] = meas[e["channel"]] * e["value"]

@@ -48,7 +48,12 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "parameter_error"),
+#: nonlinear suspension causes (``gen_vehicle.design_nonlinear``) and the finding that names a
+#: model-form error without a cause; ``model_form`` counts as right for a nonlinear effect when its
+#: axle is the effect's (front: k3/d3/f1, rear: k4/d4/f2)
+NONLINEAR = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
+FORM = ("model_form",) + NONLINEAR
+SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "parameter_error") + FORM,
               "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")}
 NOISE = {"vehicle": ("force_noise",), "attitude": ("gyro_noise", "accel_noise")}
 #: sizing of the committed sweep (fits ~35 min of one core for 200 vehicle + 100 attitude runs)
@@ -70,6 +75,8 @@ def size_u(e: dict, case: dict) -> float:
     import math
 
     c, v = e["cause"], e["value"]
+    if c not in SIZE_RANGES:  # nonlinear effects: sized by their own draw (gen_vehicle.draw_effect)
+        return 0.5
     if c == "force_offset":
         p = case["model"]
         share = p["a"] if e["channel"] == "f1" else p["b"]
@@ -108,13 +115,26 @@ def _inside(value, interval) -> bool:
     return lo <= value <= hi
 
 
+def _axle(t: tuple) -> str | None:
+    return {"k3": "front", "d3": "front", "f1": "front", "k4": "rear", "d4": "rear", "f2": "rear"}.get(t[1])
+
+
+def _as_truth(f: dict, systematic: list) -> tuple:
+    """A finding's target, a ``model_form`` finding read as the nonlinear effect on its axle."""
+    if f["cause"] == "model_form":
+        for t in systematic:
+            if t[0] in NONLINEAR and _axle(t) == f.get("axle"):
+                return t
+    return target(f)
+
+
 def score(kind: str, effects: list, findings: list) -> dict:
     """The rules of the module docstring for one run."""
     systematic = [target(e) for e in effects if e["cause"] in SYSTEMATIC[kind]]
-    got = [target(f) for f in findings]
+    got = [_as_truth(f, systematic) for f in findings]
     alts = [[target(a) for a in f.get("indistinguishable_from", []) or []] for f in findings]
     first = got[0] if got else ("none", "")
-    out = {"n_systematic": len(systematic), "first": label(first),
+    out = {"n_systematic": len(systematic), "first": label(target(findings[0]) if findings else first),
            "first_is_systematic": first[0] in SYSTEMATIC[kind]}
     if len(systematic) == 1:
         out["right"] = first == systematic[0]
@@ -133,7 +153,7 @@ def score(kind: str, effects: list, findings: list) -> dict:
     cov = []
     for e in effects:
         match = [f for f in findings if target(f) == target(e)]
-        est = match[0]["estimate"] if match else None
+        est = match[0].get("estimate") if match else None
         c = {"target": label(target(e)), "true": e["value"], "estimate": est,
              "interval": match[0].get("interval") if match else None}
         c["covered"] = bool(match) and _inside(e["value"], c["interval"])
@@ -149,8 +169,8 @@ def score(kind: str, effects: list, findings: list) -> dict:
 
 # ----------------------------------------------------------------------------- one run
 def _trim(f: dict) -> dict:
-    keep = ("cause", "channel", "parameter", "sensor", "estimate", "interval", "z", "evidence",
-            "indistinguishable_from", "confirmed", "estimate_kind")
+    keep = ("cause", "channel", "parameter", "sensor", "axle", "state", "estimate", "interval", "z",
+            "evidence", "indistinguishable_from", "confirmed", "estimate_kind")
     return {k: f[k] for k in keep if k in f}
 
 
@@ -195,6 +215,7 @@ def run_one(kind: str, case: dict, cache: str, sizing: dict, keep_dir: str | Non
         res["diag_cpu_s"] = time.process_time() - c1
         res["wall_s"] = time.time() - w0
         res["findings"] = [_trim(f) for f in report.get("findings", [])]
+        res["could_not_show"] = [nt for nt in report.get("notes", []) if nt.startswith("Could not show")]
         res["gain"] = _trim_gain(report.get("gain"))
         res["score"] = score(kind, full["effects"], report.get("findings", []))
     except Exception as e:  # noqa: BLE001 - a failing diagnosis is a result, recorded
@@ -378,6 +399,49 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
     }
 
 
+def nonlinear_summary(results: list[dict]) -> dict:
+    """The nonlinear design's measures: per run with a nonlinear effect, right (the cause, or
+    ``model_form`` on its axle, first; pairs: both in the first two), else whether the report said
+    it could not show the effect; split by whether the run measured that axle's spring travel
+    (s1/s2), the channel that shows a spring law. Effect-free runs: how many got a model-form
+    finding (``FORM``), and how many got one of today's causes."""
+    ok = [r for r in results if "score" in r]
+    rows = []
+    for r in ok:
+        nl = [e for e in r["effects"] if e["cause"] in NONLINEAR]
+        if not nl:
+            continue
+        e = nl[0]
+        t = target(e)
+        said = any(f"{t[0]}[{t[1]}]" in nt for nt in r.get("could_not_show", []))
+        axle = _axle(t)
+        travel = f"s{1 if axle == 'front' else 2}"
+        shows = e["cause"] == "tyre_lift_off" or travel in r["case"]["channels"]
+        rows.append({"index": r["index"], "stratum": r["stratum"], "effect": label(t), "value": e["value"],
+                     "right": bool(r["score"].get("right")), "could_not_show_said": said,
+                     "travel_measured": shows, "channels": r["case"]["channel_set"],
+                     "first_three": [label(target(f)) + (f"({f.get('axle')})" if f["cause"] == "model_form" else "")
+                                     for f in r["findings"][:3]]})
+    free = [r for r in ok if r["score"]["n_systematic"] == 0]
+    form_fa = [r["index"] for r in free if any(f["cause"] in FORM for f in r["findings"])]
+    today_fa = [r["index"] for r in free if any(f["cause"] in SYSTEMATIC["vehicle"] and f["cause"] not in FORM
+                                                for f in r["findings"])]
+
+    def count(g):
+        right = sum(x["right"] for x in g)
+        said = sum((not x["right"]) and x["could_not_show_said"] for x in g)
+        return {"n": len(g), "right": right, "right_pct": _pct(right, len(g)), "could_not_show_said": said,
+                "neither": len(g) - right - said}
+
+    return {"all": count(rows), "travel_measured": count([x for x in rows if x["travel_measured"]]),
+            "travel_not_measured": count([x for x in rows if not x["travel_measured"]]),
+            "per_cause": {c: count([x for x in rows if x["effect"].startswith(c)]) for c in NONLINEAR},
+            "effect_free": {"n": len(free), "model_form_findings": len(form_fa),
+                            "model_form_pct": _pct(len(form_fa), len(free)), "runs": form_fa,
+                            "todays_causes_findings": len(today_fa), "todays_runs": today_fa},
+            "per_run": rows}
+
+
 def _fmt(v):
     if v is None:
         return "-"
@@ -495,6 +559,10 @@ def main(argv=None):
     ap.add_argument("--cache", help="folder of per-run results (default OUT/cache/<kind>-<seed>)")
     ap.add_argument("--prefix", default="", help="prefix of the summary files; the committed ones are named by the commit that diagnosed them, "
                     "e.g. '20e4450-'")
+    ap.add_argument("--design", choices=("standard", "nonlinear"), default="standard",
+                    help="vehicle: the stratified design of today's causes, or the nonlinear suspension "
+                         "design (gen_vehicle.design_nonlinear: effect-free runs, nonlinear effects alone "
+                         "and paired with a sensor effect)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--chunk", default="0/1", help="i/k: only the cases with index = i mod k")
     ap.add_argument("--report-only", action="store_true", help="summarise the cache, run nothing")
@@ -504,11 +572,12 @@ def main(argv=None):
                          "no re-simulation check of the causes and no pitch gain; faster)")
     a = ap.parse_args(argv)
     gen = __import__("gen_vehicle" if a.kind == "vehicle" else "gen_attitude")
-    cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{a.seed}")
+    nonlinear = a.kind == "vehicle" and a.design == "nonlinear"
+    cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{'nonlinear-' if nonlinear else ''}{a.seed}")
     os.makedirs(cache, exist_ok=True)
     os.makedirs(a.out, exist_ok=True)
     sizing = SIZING[a.kind]
-    cases = gen.design(a.n, a.seed)
+    cases = gen.design_nonlinear(a.n, a.seed) if nonlinear else gen.design(a.n, a.seed)
     i, k = (int(x) for x in a.chunk.split("/"))
     todo = [c for c in cases if c["index"] % k == i
             and not os.path.exists(os.path.join(cache, f"{c['index']:04d}.json"))]
@@ -541,9 +610,12 @@ def main(argv=None):
                 results.append(json.load(fh))
     cmd = (f"python benchmarks/independent/sweep.py --kind {a.kind} --n {a.n} --seed {a.seed} "
            f"--out {a.out}" + (f" --prefix {a.prefix}" if a.prefix else "")
-           + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "") + " --jobs 1")
+           + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "")
+           + (" --design nonlinear" if nonlinear else "") + " --jobs 1")
     summ = summarise(a.kind, results, {"seed": a.seed, "n_design": a.n, "command": cmd,
                                        "sizing": sizing, "jaxdrift_commit": _commit()})
+    if nonlinear:
+        summ["nonlinear"] = nonlinear_summary(results)
     if len(results) < len(cases):
         print(f"note: {len(cases) - len(results)} cases not yet in the cache; summary of {len(results)}")
     base = os.path.join(a.out, f"{a.prefix}{a.kind}")
@@ -552,6 +624,8 @@ def main(argv=None):
     with open(base + ".md", "w") as fh:
         fh.write(markdown(summ))
     print(markdown(summ).split("## Confusion")[0])
+    if nonlinear:
+        print(json.dumps(summ["nonlinear"], indent=1))
 
 
 if __name__ == "__main__":

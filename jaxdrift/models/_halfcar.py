@@ -30,6 +30,14 @@ against the matrix forms (A.3)-(A.5)); they are pure, jit/vmap safe, and accept 
 :class:`~jaxdrift.HalfCarParams` under ``vmap``. The ``t`` argument is unused; it is there so the
 functions slot into the engine's ``f(t, y, args)`` convention.
 
+Optional nonlinear suspension (``nonlinear=`` a :class:`NonlinearSuspension`; ``None``, the
+default, is the linear law above, computed by the same expressions, so results are bit-identical):
+per axle an asymmetric damper (rebound/compression ratio ``rho`` with the model's mean damping:
+``2 d / (1 + rho)`` in compression, ``rho`` times that in rebound), a progressive spring
+(``k (u + c u^3)`` with ``u`` the travel from the static one), a bump stop (``k_b max(u - u_b, 0)``
+added in compression) and tyre lift-off (road-driven contact forces cannot pull: ``max(f, 0)``).
+All terms vanish at the static state, so the static equilibrium is the linear one.
+
 The section-3 remedy (approach 1, "a rotational spring between the vehicle body and ground") is the
 optional ``pitch_spring=(k_rot, d_rot)`` of :func:`force_driven_rhs`: a torque
 ``-(k_rot beta + d_rot beta')`` on the chassis, whose size :func:`pitch_spring_torque` reports.
@@ -39,6 +47,8 @@ from __future__ import annotations
 
 import jax.numpy as jnp
 import numpy as np
+
+from typing import NamedTuple
 
 from ._params import HalfCarParams
 from ._trig import sincos
@@ -56,6 +66,7 @@ __all__ = [
     "pitch_spring_torque",
     "static_equilibrium",
     "pitch_states_from_force_states",
+    "NonlinearSuspension",
 ]
 
 FORCE_STATE_NAMES = ("z1", "z2", "z3", "beta", "dz1", "dz2", "dz3", "dbeta", "zeta1", "zeta2")
@@ -71,37 +82,72 @@ def _sin_cos(beta, linear: bool):
     return sincos(beta)
 
 
-def spring_forces(q, dq, params: HalfCarParams, linear: bool = False):
+class NonlinearSuspension(NamedTuple):
+    """Nonlinear terms of the chassis springs and dampers, per axle (3: front, 4: rear), and tyre
+    lift-off; the defaults are the linear model. A pytree (jit/vmap safe)."""
+
+    damper_ratio3: float = 1.0   # rebound / compression damping ratio, mean damping kept
+    damper_ratio4: float = 1.0
+    cubic3: float = 0.0          # c [1/m^2]: spring force k (u + c u^3), u = travel - static travel
+    cubic4: float = 0.0
+    stop_k3: float = 0.0         # bump-stop stiffness k_b [N/m] beyond the travel u_b [m] (compression)
+    stop_k4: float = 0.0
+    stop_u3: float = 0.0
+    stop_u4: float = 0.0
+    lift_off: bool = False       # road-driven tyre forces cannot pull
+
+
+def _nonlinear_law(k, d, s, ds, s0, rho, cubic, stop_k, stop_u):
+    """One chassis spring-damper with the nonlinear terms (see :class:`NonlinearSuspension`)."""
+    dc = 2.0 * d / (1.0 + rho)
+    u = s - s0
+    return (k * s + jnp.where(ds > 0.0, dc, rho * dc) * ds + k * cubic * u * u * u
+            + stop_k * jnp.maximum(u - stop_u, 0.0))
+
+
+def spring_forces(q, dq, params: HalfCarParams, linear: bool = False, nonlinear=None):
     """Chassis spring forces ``(f3, f4)`` of (A.1).
 
     ``q = [z1, z2, z3, beta]`` and ``dq = [z1', z2', z3', beta']`` (arrays whose last axis has
-    length 4, or any sequence of four scalars). Returns a tuple of two scalars.
+    length 4, or any sequence of four scalars). Returns a tuple of two scalars. ``nonlinear``: a
+    :class:`NonlinearSuspension` (``None``: the linear law).
     """
     p = params
     z1, z2, z3, beta = q[0], q[1], q[2], q[3]
     dz1, dz2, dz3, dbeta = dq[0], dq[1], dq[2], dq[3]
     s, c = _sin_cos(beta, linear)
-    f3 = p.k3 * (z3 - z1 - p.b * s) + p.d3 * (dz3 - dz1 - p.b * dbeta * c)
-    f4 = p.k4 * (z3 - z2 + p.a * s) + p.d4 * (dz3 - dz2 + p.a * dbeta * c)
+    if nonlinear is None:
+        f3 = p.k3 * (z3 - z1 - p.b * s) + p.d3 * (dz3 - dz1 - p.b * dbeta * c)
+        f4 = p.k4 * (z3 - z2 + p.a * s) + p.d4 * (dz3 - dz2 + p.a * dbeta * c)
+        return f3, f4
+    n = nonlinear
+    _, _, f3s, f4s = equilibrium_forces(p)
+    f3 = _nonlinear_law(p.k3, p.d3, z3 - z1 - p.b * s, dz3 - dz1 - p.b * dbeta * c, f3s / p.k3,
+                        n.damper_ratio3, n.cubic3, n.stop_k3, n.stop_u3)
+    f4 = _nonlinear_law(p.k4, p.d4, z3 - z2 + p.a * s, dz3 - dz2 + p.a * dbeta * c, f4s / p.k4,
+                        n.damper_ratio4, n.cubic4, n.stop_k4, n.stop_u4)
     return f3, f4
 
 
-def contact_forces(xbar, params: HalfCarParams, zeta, dzeta):
+def contact_forces(xbar, params: HalfCarParams, zeta, dzeta, nonlinear=None):
     """Tyre (contact) forces ``[f1, f2]`` of (4.3) for the road ``zeta = [zeta1, zeta2]``.
 
     ``xbar`` is the 8-state road-mode vector (the first 8 entries of a 10-state vector work too):
     ``f_i = k_i (z_i - zeta_i) + d_i (z_i' - zeta_i')``. Positive ``f_i`` pushes the wheel up.
+    ``nonlinear.lift_off``: the tyre cannot pull (``max(f_i, 0)``).
     """
     p = params
     f1 = p.k1 * (xbar[0] - zeta[0]) + p.d1 * (xbar[4] - dzeta[0])
     f2 = p.k2 * (xbar[1] - zeta[1]) + p.d2 * (xbar[5] - dzeta[1])
+    if nonlinear is not None and nonlinear.lift_off:
+        f1, f2 = jnp.maximum(f1, 0.0), jnp.maximum(f2, 0.0)
     return jnp.stack([f1, f2])
 
 
-def _accelerations(q, dq, params, f1, f2, linear, torque=0.0):
+def _accelerations(q, dq, params, f1, f2, linear, torque=0.0, nonlinear=None):
     """(z1'', z2'', z3'', beta'') of (A.2) given the tyre forces; ``torque`` acts on beta."""
     p = params
-    f3, f4 = spring_forces(q, dq, p, linear)
+    f3, f4 = spring_forces(q, dq, p, linear, nonlinear)
     _, c = _sin_cos(q[3], linear)
     ddz1 = p.g + (f3 - f1) / p.m1
     ddz2 = p.g + (f4 - f2) / p.m2
@@ -122,7 +168,8 @@ def pitch_spring_torque(x, k_rot, d_rot):
     return k_rot * x[..., 3] + d_rot * x[..., 7]
 
 
-def force_driven_rhs(t, x, params: HalfCarParams, f1, f2, linear: bool = False, pitch_spring=None):
+def force_driven_rhs(t, x, params: HalfCarParams, f1, f2, linear: bool = False, pitch_spring=None,
+                     nonlinear=None):
     """Right-hand side ``x'`` of the force-driven half-car (A.3), 10 states.
 
     ``x = [z1, z2, z3, beta, z1', z2', z3', beta', zeta1, zeta2]``; ``f1, f2`` are the (measured)
@@ -130,6 +177,7 @@ def force_driven_rhs(t, x, params: HalfCarParams, f1, f2, linear: bool = False, 
     ``d_i zeta_i' = k_i (z_i - zeta_i) + d_i z_i' - f_i`` (rows 9-10 of (A.3)).
     ``pitch_spring=(k_rot, d_rot)`` adds the section-3 rotational spring-damper to ground
     (torque ``-(k_rot beta + d_rot beta')`` on the chassis); ``None`` is the free model.
+    ``nonlinear``: a :class:`NonlinearSuspension` for the chassis springs (``None``: linear).
     """
     p = params
     q, dq = x[0:4], x[4:8]
@@ -137,21 +185,23 @@ def force_driven_rhs(t, x, params: HalfCarParams, f1, f2, linear: bool = False, 
     if pitch_spring is not None:
         k_rot, d_rot = pitch_spring
         torque = -(k_rot * x[3] + d_rot * x[7])
-    ddz1, ddz2, ddz3, ddbeta = _accelerations(q, dq, p, f1, f2, linear, torque)
+    ddz1, ddz2, ddz3, ddbeta = _accelerations(q, dq, p, f1, f2, linear, torque, nonlinear)
     dzeta1 = (p.k1 * (x[0] - x[8]) + p.d1 * x[4] - f1) / p.d1
     dzeta2 = (p.k2 * (x[1] - x[9]) + p.d2 * x[5] - f2) / p.d2
     return jnp.stack([x[4], x[5], x[6], x[7], ddz1, ddz2, ddz3, ddbeta, dzeta1, dzeta2])
 
 
-def road_driven_rhs(t, xbar, params: HalfCarParams, zeta, dzeta, linear: bool = False):
+def road_driven_rhs(t, xbar, params: HalfCarParams, zeta, dzeta, linear: bool = False, nonlinear=None):
     """Right-hand side of the road-driven half-car (A.4), 8 states.
 
     ``xbar = [z1, z2, z3, beta, z1', z2', z3', beta']``; ``zeta = [zeta1, zeta2]`` and
     ``dzeta = [zeta1', zeta2']`` are the road under each wheel at time ``t`` (z-down, so a hill of
     height h is ``zeta = -h``). The contact forces are (4.3), see :func:`contact_forces`.
+    ``nonlinear``: a :class:`NonlinearSuspension` (``None``: linear springs, tyres that can pull).
     """
-    f = contact_forces(xbar, params, zeta, dzeta)
-    ddz1, ddz2, ddz3, ddbeta = _accelerations(xbar[0:4], xbar[4:8], params, f[0], f[1], linear)
+    f = contact_forces(xbar, params, zeta, dzeta, nonlinear)
+    ddz1, ddz2, ddz3, ddbeta = _accelerations(xbar[0:4], xbar[4:8], params, f[0], f[1], linear,
+                                              nonlinear=nonlinear)
     return jnp.stack([xbar[4], xbar[5], xbar[6], xbar[7], ddz1, ddz2, ddz3, ddbeta])
 
 

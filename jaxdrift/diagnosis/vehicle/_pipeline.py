@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ...io._timebase import run_block
+from ._adequacy import assess_model_form
 from ._causes import FORCE_CHANNELS, _apply
 from ._confirm import confirm_by_resimulation, confirm_corrections, unconfirmed_findings
 from ._extend import resimulate
@@ -62,11 +63,15 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
                          "estimate_kind": noise["kind"],
                          "evidence": src[0].upper() + src[1:] + "."})
     joint_intervals(findings)
+    # model adequacy and the nonlinear suspension (_adequacy): its findings lead, as the linear
+    # findings hold only if the model's form does; no other finding changes
+    form = assess_model_form(prob, p_ext, corr_ext, res1, dynamic)
+    findings = form["findings"] + findings
     if not findings:
         findings.append({"cause": "none", "evidence": (
             "no systematic cause passes the test and " + noise["source"] +
             ", indistinguishable from the numerical floor of the comparison.")})
-    notes += identifiability_notes(prob, sel)
+    notes += identifiability_notes(prob, sel) + form["notes"]
 
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
@@ -81,7 +86,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         "kind": "vehicle",
         "simulation_error": sim_err,
         "findings": findings,
-        "extended_model": {"parameters": params_ext, "corrections": corrections},
+        "extended_model": {"parameters": params_ext, "corrections": corrections,
+                           **({"nonlinear": form["correction"]} if form["correction"] else {})},
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
                 "duration_s": float(run.t[-1] - run.t[0]),

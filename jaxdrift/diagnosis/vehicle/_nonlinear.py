@@ -1,0 +1,345 @@
+"""Nonlinear suspension causes: force terms the linear springs and dampers of the model lack.
+
+Each cause is one self-contained class: its name and unit, the extra chassis spring force it adds
+per unit of its parameter ``theta`` as a function of the model's own states (``force``), its
+plausible range, the estimate it reports, its correction in the extended model (the fields of
+:class:`jaxdrift.models.NonlinearSuspension`) and its evidence sentence. All vanish at the static
+state, so the static equilibrium stays the linear one.
+
+How a cause shows in the residuals (``signatures``): an extra spring force ``Delta_i(t)`` on axle
+``i`` acts on the model like an input. The comparison is linear given the measured motion, so its
+change is the linear model's response to ``Delta`` (the same exact discretisation as the
+residuals), plus ``Delta`` itself where the channel sums spring forces (moment, heave). In a spring
+channel the direct term cancels: the model's prediction from the measured travel carries ``Delta``
+too. So the spring channel shows ``Delta`` almost undiminished (the wheel passes the force on),
+while moment and heave show only what the small wheel mass makes of it: a spring law error barely
+changes the forces the wheels pass on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from ._discretise import _poly_coeffs
+
+AXLES = ("front", "rear")
+
+
+@dataclass
+class States:
+    """The fitted model's spring travel from its static value ``u`` [m] and rate ``v`` [m/s] per
+    axle on the fine grid (positive: compression), with the static travel and the model."""
+
+    u: tuple
+    v: tuple
+    s0: tuple
+    p: dict
+
+
+class NonlinearCause:
+    """Base: ``axle`` 0 (front, k3/d3) or 1 (rear, k4/d4)."""
+
+    name = ""
+    unit = ""
+    spring_or_damper = "k"
+
+    def __init__(self, axle: int):
+        self.axle = axle
+
+    @property
+    def target(self) -> str:
+        return f"{self.spring_or_damper}{self.axle + 3}"
+
+    @property
+    def label(self) -> str:
+        return f"{self.name}[{self.target}]"
+
+    def force(self, st: States) -> np.ndarray:  # extra spring force per unit theta [N]
+        raise NotImplementedError
+
+    def bounds(self, st: States) -> tuple[float, float]:
+        raise NotImplementedError
+
+    def to_estimate(self, theta: float, st: States) -> float:
+        raise NotImplementedError
+
+    def correction(self, theta: float, st: States) -> dict:
+        raise NotImplementedError
+
+    def typical(self, st: States) -> float:
+        """The largest size engineers meet, in theta: 'could not show' compares with it."""
+        raise NotImplementedError
+
+    def describe(self, theta: float, st: States) -> str:
+        raise NotImplementedError
+
+
+class DamperAsymmetry(NonlinearCause):
+    """Rebound damping ``d (1 + theta)``, compression ``d (1 - theta)`` (mean kept: a mean error is
+    the linear ``parameter_error``); reported as the rebound/compression ratio."""
+
+    name, unit, spring_or_damper = "damper_asymmetry", "ratio", "d"
+
+    def force(self, st):
+        d = st.p["d3" if self.axle == 0 else "d4"]
+        return -d * np.abs(st.v[self.axle])
+
+    def bounds(self, st):
+        return -0.6, 0.6  # ratio 0.25 ... 4
+
+    def to_estimate(self, theta, st):
+        return (1.0 + theta) / (1.0 - theta)
+
+    def correction(self, theta, st):
+        return {f"damper_ratio{self.axle + 3}": self.to_estimate(theta, st)}
+
+    def typical(self, st):
+        return 0.6 / 2.6  # ratio 1.6
+
+    def describe(self, theta, st):
+        r = self.to_estimate(theta, st)
+        which = "stiffer in rebound than in compression" if r > 1 else "stiffer in compression than in rebound"
+        return (f"the {AXLES[self.axle]} damper is {which}: rebound/compression ratio {r:.3g} "
+                f"({self.target} x {1 + theta:.3g} in rebound, x {1 - theta:.3g} in compression)")
+
+
+class ProgressiveSpring(NonlinearCause):
+    """Spring force ``k (u + theta u^3)``, u the travel from the static one; theta [1/m^2]."""
+
+    name, unit, spring_or_damper = "progressive_spring", "1/m^2", "k"
+
+    def _u99(self, st):
+        return max(float(np.quantile(np.abs(st.u[self.axle]), 0.99)), 1e-6)
+
+    def force(self, st):
+        k = st.p["k3" if self.axle == 0 else "k4"]
+        return k * st.u[self.axle] ** 3
+
+    def bounds(self, st):
+        u = self._u99(st)
+        return -0.9 / (3 * u * u), 5.0 / (3 * u * u)  # stiffness -90 % ... +500 % at the 99 % travel
+
+    def to_estimate(self, theta, st):
+        return theta
+
+    def correction(self, theta, st):
+        return {f"cubic{self.axle + 3}": theta}
+
+    def typical(self, st):
+        u = self._u99(st)
+        return 1.0 / (3 * u * u)  # +100 % stiffness at the run's 99th-percentile travel
+
+    def describe(self, theta, st):
+        u = self._u99(st)
+        ch = 3 * theta * u * u
+        return (f"the {AXLES[self.axle]} spring is {'progressive' if theta > 0 else 'degressive'}: "
+                f"force {self.target} (u + {theta:.4g} u^3), its stiffness {100 * ch:+.3g} % at "
+                f"{1e3 * u:.3g} mm from the static travel (99 % of the run's travel)")
+
+
+class BumpStop(NonlinearCause):
+    """A stop of stiffness ``theta k`` beyond the compression ``u_b`` from the static travel; u_b
+    is chosen from a grid of the run's travel quantiles (``GRID``), theta fitted."""
+
+    name, unit, spring_or_damper = "bump_stop", "N/m", "k"
+    GRID = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995)
+
+    def __init__(self, axle: int, q: float):
+        super().__init__(axle)
+        self.q = q
+
+    def travel(self, st):
+        return float(np.quantile(st.u[self.axle], self.q))
+
+    def force(self, st):
+        k = st.p["k3" if self.axle == 0 else "k4"]
+        return k * np.maximum(st.u[self.axle] - self.travel(st), 0.0)
+
+    def bounds(self, st):
+        return 0.0, 30.0
+
+    def to_estimate(self, theta, st):
+        return theta * st.p[self.target]
+
+    def correction(self, theta, st):
+        return {f"stop_k{self.axle + 3}": self.to_estimate(theta, st), f"stop_u{self.axle + 3}": self.travel(st)}
+
+    def typical(self, st):
+        return 10.0
+
+    def describe(self, theta, st):
+        share = 100 * (1 - self.q)
+        return (f"the {AXLES[self.axle]} suspension hits a stop: {self.to_estimate(theta, st):.4g} N/m "
+                f"({theta:.3g} x {self.target}) beyond {1e3 * self.travel(st):.3g} mm of compression "
+                f"from the static travel (reached on {share:.3g} % of the samples)")
+
+
+class StateTerm(NonlinearCause):
+    """A state-dependent force outside the catalogue (``model_form`` only): a quadratic damper
+    ``v |v|`` or a spring stiffer one way ``u^2``."""
+
+    def __init__(self, axle: int, kind: str):
+        super().__init__(axle)
+        self.kind = kind
+        self.name = "model_form"
+        self.spring_or_damper = "d" if kind == "v|v|" else "k"
+
+    def force(self, st):
+        v, u = st.v[self.axle], st.u[self.axle]
+        if self.kind == "v|v|":
+            vr = max(float(np.sqrt(np.mean(v * v))), 1e-9)
+            return st.p[self.target] * v * np.abs(v) / vr
+        ur = max(float(np.sqrt(np.mean(u * u))), 1e-9)
+        return st.p[self.target] * u * u / ur
+
+    def bounds(self, st):
+        return -math.inf, math.inf
+
+
+#: the state each term depends on, in words (model_form findings)
+def state_words(c: NonlinearCause) -> tuple[str, str]:
+    """(state key, phrase) of the state a cause's force depends on."""
+    ax = AXLES[c.axle]
+    i = c.axle + 1
+    if isinstance(c, DamperAsymmetry):
+        return f"|s{i}'|", f"the size of the {ax} damper's velocity, with opposite sign in rebound and compression"
+    if isinstance(c, ProgressiveSpring):
+        return f"u{i}^3", f"the cube of the {ax} spring's travel from its static value"
+    if isinstance(c, BumpStop):
+        return f"max(u{i} - u_b, 0)", f"the {ax} spring's compression beyond {1e3 * c.q:.3g} per mille of its travel"
+    if c.kind == "v|v|":
+        return f"s{i}'|s{i}'|", f"the square of the {ax} damper's velocity (a quadratic damper)"
+    return f"u{i}^2", f"the square of the {ax} spring's travel (a spring stiffer one way than the other)"
+
+
+def catalogue() -> list[NonlinearCause]:
+    """Every nonlinear cause and state term tried on a run (bump stops at each grid travel)."""
+    out: list[NonlinearCause] = []
+    for ax in (0, 1):
+        out += [DamperAsymmetry(ax), ProgressiveSpring(ax)]
+        out += [BumpStop(ax, q) for q in BumpStop.GRID]
+        out += [StateTerm(ax, "v|v|"), StateTerm(ax, "u^2")]
+    return out
+
+
+# ----------------------------------------------------------------------------- states, signatures
+def model_states(pipe, p: dict, corr: dict) -> States:
+    """Spring travel and rate of the fitted model driven by the corrected forces (fine grid)."""
+    forces_c, _ = pipe._corrected_coeffs(corr, False)
+    f3, f4, x = pipe.simulate(p, None, forces_c=forces_c)
+    a, b = p["a"], p["b"]
+    if pipe.mode == "pitch" and pipe.has_z3:
+        s = (pipe.Z - x[:, 0] - b * pipe.S, pipe.Z - x[:, 1] + a * pipe.S)
+        ds = (pipe.dZ - x[:, 2] - b * pipe.dS, pipe.dZ - x[:, 3] + a * pipe.dS)
+    elif pipe.mode == "pitch":
+        s = (x[:, 0] - b * pipe.S, x[:, 1] + a * pipe.S)
+        ds = (x[:, 2] - b * pipe.dS, x[:, 3] + a * pipe.dS)
+    else:
+        s, ds = (x[:, 0], x[:, 1]), (x[:, 2], x[:, 3])
+    g, m3 = p["g"], p["m3"]
+    s0 = (a * m3 * g / (a + b) / p["k3"], b * m3 * g / (a + b) / p["k4"])
+    n = len(s[0])
+    return States(tuple(np.asarray(s[i][:n]) - s0[i] for i in (0, 1)), tuple(np.asarray(ds[i][:n]) for i in (0, 1)),
+                  s0, p)
+
+
+def _equivalent_forces(pipe, p: dict, d3: np.ndarray, d4: np.ndarray):
+    """Tyre-force inputs that move the linear system as extra spring forces (d3, d4) would."""
+    m1, m2, m3, I, a, b = p["m1"], p["m2"], p["m3"], p["I"], p["a"], p["b"]
+    if pipe.mode == "pitch" and pipe.has_z3:
+        return -d3, -d4
+    if pipe.mode == "pitch":
+        return (-m1 * (1 / m3 + 1 / m1) * d3 - m1 / m3 * d4,
+                -m2 / m3 * d3 - m2 * (1 / m3 + 1 / m2) * d4)
+    c = -1 / m3 + a * b / I
+    return (m1 * (-(1 / m3 + 1 / m1 + b * b / I) * d3 + c * d4),
+            m2 * (c * d3 - (1 / m3 + 1 / m2 + a * a / I) * d4))
+
+
+def signatures(pipe, p: dict, delta: tuple) -> dict:
+    """Change of every residual channel (kept rows not yet cut) when the extra spring forces
+    ``delta = (d3, d4)`` (fine grid) are added to the model: see the module docstring."""
+    d3, d4 = (np.asarray(d, dtype=float) for d in delta)
+    n = pipe.nf
+    d3, d4 = np.resize(d3, n), np.resize(d4, n)
+    e1, e2 = _equivalent_forces(pipe, p, d3, d4)
+    forces_c = {"f1": _poly_coeffs(CubicSpline(pipe.tauf, e1)), "f2": _poly_coeffs(CubicSpline(pipe.tauf, e2))}
+    f3, f4, x = pipe.simulate(p, None, linear_part_only=True, forces_c=forces_c)
+    U = pipe.U
+    ch = {}
+    a, b = p["a"], p["b"]
+    if pipe.has_beta:
+        ch["moment"] = -(pipe.cosb * (b * (f3 + d3) - a * (f4 + d4)))[::U][1:-1]
+    if pipe.has_z3:
+        ch["heave"] = (f3 + f4 + d3 + d4)[::U][1:-1]
+    for i, fs in ((0, f3), (1, f4)):
+        if pipe.has_s[i]:
+            ch[f"spring{i + 1}"] = fs[::U]
+    for i in (1, 2):
+        if f"tyre{i}" in pipe.channel_names:
+            k, d = (p["k1"], p["d1"]) if i == 1 else (p["k2"], p["d2"])
+            ch[f"tyre{i}"] = -(k * x[:, i - 1] + d * x[:, i + 1])[::U]
+    pipe._band_filter(ch)
+    return ch
+
+
+class TyreLiftOff:
+    """The tyre force cannot pull: where the wheel leaves the road the measured force sits at its
+    floor (the sensor's zero) instead of going below it. The force-driven comparison takes the
+    measured forces as they are, so no residual shows it; the forces themselves do: an atom of
+    samples at the floor, where a force that never touches zero thins out towards its minimum.
+
+    Test: with ``m`` the 0.1 % quantile of the force and ``w = 3 sigma + 0.005 F_s`` (sigma the
+    force noise, F_s the static load), the samples in ``[m, m + w]`` must be at least ``MIN_SHARE``
+    of the record in at least ``MIN_STRETCHES`` separate stretches and more than ``ATOM_RATIO``
+    times those in ``[m + w, m + 2 w]``, nothing may lie more than ``w`` below ``m`` (a floor: a
+    force that only dips towards zero goes on below its 0.1 % quantile), and ``m`` must be within
+    ``FLOOR_SHARE`` of the static load from zero (a force offset moves the floor)."""
+
+    name, unit = "tyre_lift_off", "share of samples"
+    MIN_SHARE = 0.003
+    ATOM_RATIO = 3.0
+    FLOOR_SHARE = 0.15
+    MIN_STRETCHES = 5
+
+    def __init__(self, channel: str):
+        self.channel = channel
+
+    def detect(self, f: np.ndarray, sigma: float) -> dict | None:
+        f = np.asarray(f, dtype=float)
+        fs0 = float(np.median(f[: max(5, len(f) // 200)]))
+        if fs0 <= 0:
+            return None
+        m = float(np.quantile(f, 0.001))
+        w = 3.0 * sigma + 0.005 * fs0
+        if abs(m) > self.FLOOR_SHARE * fs0 or float(f.min()) < m - w:
+            return None
+        inside = f <= m + w
+        k1 = int(inside.sum())
+        k2 = int(((f > m + w) & (f <= m + 2 * w)).sum())
+        if k1 < self.MIN_SHARE * len(f) or k1 <= self.ATOM_RATIO * k2:
+            return None
+        flights = int(np.sum(np.diff(inside.astype(int)) == 1) + inside[0])
+        if flights < self.MIN_STRETCHES:
+            return None
+        floor = float(np.median(f[inside]))
+        share = k1 / len(f)
+        half = 1.96 * share / math.sqrt(max(flights, 1))
+        return {"share": share, "floor": floor, "flights": flights, "k_next": k2,
+                "interval": [max(share - half, 0.0), min(share + half, 1.0)], "width": w}
+
+    def finding(self, det: dict) -> dict:
+        ch, i = self.channel, self.channel[1]
+        ev = (f"{ch} sits at its floor of {det['floor']:.3g} N on {100 * det['share']:.3g} % of the samples "
+              f"({det['flights']} separate stretches within {det['width']:.3g} N of it; {det['k_next']} samples "
+              f"lie in the next {det['width']:.3g} N above, where a force that only comes near zero would have more): "
+              f"the tyre leaves the road and cannot pull. The force-driven comparison takes the measured "
+              f"forces and is not affected; a road-driven model needs the tyre law with lift-off "
+              f"(NonlinearSuspension(lift_off=True)); a measured road height zeta{i} would check the tyre "
+              f"law there")
+        return {"cause": self.name, "channel": ch, "estimate": float(det["share"]), "unit": self.unit,
+                "interval": [float(x) for x in det["interval"]], "evidence": ev + "."}
