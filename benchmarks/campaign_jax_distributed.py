@@ -38,6 +38,7 @@ def main(argv=None):
     ap.add_argument("--json")
     a = ap.parse_args(argv)
     manifest = os.path.join(a.data, "campaign.toml")
+    os.makedirs(a.work, exist_ok=True)
     env = dict(os.environ, OMP_NUM_THREADS="1", JAX_PLATFORMS="cpu")
     env.pop("XLA_FLAGS", None)
     port = _port()
