@@ -111,7 +111,7 @@ def confirm_by_resimulation(prob: _Problem, sel: Selection, log=None) -> tuple[S
     (``_extend.DYNAMIC_BAND_HZ``). Below it the error is the open-loop random walk of the force
     noise, which a right model drifts through as much as a wrong one, so the full-band error would
     decide by chance (right stiffness, delay and inertia corrections were dropped that way on
-    independent runs whose full-band error the drift made 2.6x larger).
+    independent hold-out runs whose full-band error the drift made larger than the model's).
 
     The extension is re-simulated with all its causes and without each one (one batched solve); a
     cause without which the band's pitch RMS error is below ``WORSE_FACTOR`` of the error with it

@@ -188,8 +188,8 @@ def noise_pitch_dynamic_rms(p: dict, h: float) -> float:
     f = np.unique(np.concatenate([np.geomspace(DYNAMIC_BAND_HZ / 20, fs / 2, 1500),
                                   np.linspace(DYNAMIC_BAND_HZ / 20, fs / 2, 1500)]))
     z = np.exp(2j * np.pi * f * h)
-    eye = np.eye(Phi.shape[0])
-    H = np.array([np.linalg.solve(zk * eye - Phi, Gam)[3] for zk in z])  # (nf, 2): pitch row
+    # (z I - Phi)^-1 Gam at every frequency in one batched solve; row 3 is the pitch: (nf, 2)
+    H = np.linalg.solve(z[:, None, None] * np.eye(Phi.shape[0]) - Phi, Gam)[:, 3, :]
     sos = scipy.signal.butter(4, DYNAMIC_BAND_HZ, btype="highpass", fs=fs, output="sos")
     _, hp = scipy.signal.sosfreqz(sos, worN=f, fs=fs)
     power = np.sum(np.abs(H) ** 2, axis=1) * np.abs(hp) ** 4
