@@ -102,7 +102,7 @@ def test_residuals_vanish_on_independent_true_run(scipy_clean_run):
     the true motion: every residual is below 1e-4 of the signal it balances."""
     cols, true = scipy_clean_run
     run = _run(cols)
-    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in ("f1", "f2")}
+    from jaxdrift.io._corrections import NO_CORRECTION as zero
     for chans in [("beta", "z3", "s1", "s2"), ("beta",), ("z3", "s1", "s2")]:
         sub = _run({"t": cols["t"], "f1": cols["f1"], "f2": cols["f2"], **{c: cols[c] for c in chans}})
         pipe = ResidualPipeline(sub)

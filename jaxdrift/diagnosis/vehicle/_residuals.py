@@ -17,6 +17,7 @@ import scipy.fft
 import scipy.signal
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
+from ...io._corrections import Corrections
 from ...io._csvio import VehicleRun
 from ._causes import FORCE_CHANNELS
 from ._discretise import _deriv_coeffs, _discretise, _mm, _poly_coeffs, _run_recursion
@@ -202,19 +203,20 @@ class ResidualPipeline:
             self._fspl_cache[key] = scipy.signal.sosfiltfilt(sos, f - f[0], padtype="even") + f[0]
         return self._fspl_cache[key]
 
-    def corrected_forces(self, corr: dict, smooth: bool = False) -> dict[str, np.ndarray]:
-        """True-force estimate on the fine grid: (measured(t + delay) - offset) * (1 + kappa)."""
+    def corrected_forces(self, corr: Corrections, smooth: bool = False) -> dict[str, np.ndarray]:
+        """True-force estimate on the fine grid (:class:`Corrections`), the delay applied as a
+        band-limited (FFT) shift."""
         out = {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
             key = ("spec", ch, smooth)
             if key not in self._fspl_cache:
                 self._fspl_cache[key] = self._padded_spectrum(self.measured(ch, smooth))
-            if c["delay"] == 0.0 and self.U == 1:
+            if c.delay == 0.0 and self.U == 1:
                 f = self.measured(ch, smooth)
             else:
-                f = self._resample(None, c["delay"] / self.h, spec=self._fspl_cache[key])
-            out[ch] = (f - c["offset"]) * (1.0 + c["kappa"])
+                f = self._resample(None, c.delay / self.h, spec=self._fspl_cache[key])
+            out[ch] = c.finish(f, self.tauf)
         return out
 
     # ---- the linear systems
@@ -311,20 +313,24 @@ class ResidualPipeline:
         coeffs, first = {}, {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
-            key = ("coef", ch, smooth, float(c["delay"]))
+            if c.drift != 0.0:
+                # a scale changing over the run is not a constant factor on the coefficients
+                f = self.corrected_forces(corr, smooth)[ch]
+                coeffs[ch], first[ch] = _poly_coeffs(CubicSpline(self.tauf, f)), float(f[0])
+                continue
+            key = ("coef", ch, smooth, float(c.delay))
             if key not in self._fspl_cache:
                 if sum(1 for k in self._fspl_cache if k[0] == "coef") > 16:
                     for k in [k for k in self._fspl_cache if k[0] == "coef"]:
                         del self._fspl_cache[k]
-                f = self.corrected_forces({ch: {"offset": 0.0, "kappa": 0.0, "delay": c["delay"]}
-                                           for ch in FORCE_CHANNELS}, smooth)[ch]
+                f = self.corrected_forces(corr.only_delay(), smooth)[ch]
                 self._fspl_cache[key] = (_poly_coeffs(CubicSpline(self.tauf, f)), float(f[0]))
             C, f0 = self._fspl_cache[key]
             C = C.copy()
-            C[0] -= c["offset"]
-            C *= 1.0 + c["kappa"]
+            C[0] -= c.offset
+            C *= c.gain
             coeffs[ch] = C
-            first[ch] = (f0 - c["offset"]) * (1.0 + c["kappa"])
+            first[ch] = (f0 - c.offset) * c.gain
         return coeffs, first
 
     def simulate(self, p: dict, forces: dict[str, np.ndarray] | None, *, linear_part_only=False,
