@@ -29,6 +29,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     model = dict(DEFAULT_MODEL if model is None else model)
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
+    pipe = prob.pipe  # with the channels it compares band-limited
     sel0 = _select(prob, log=log)
     sel, held_out = confirm_corrections(prob, sel0, log)
     resim_out = []

@@ -354,13 +354,7 @@ def enforced_terms(prob: "_Problem", model: dict, res0: "Residuals") -> dict:
     term's size; where the channel is compared band-limited (sensor noise on the motion), the
     band-limited one too, labelled with its band."""
     pipe = prob.pipe
-    full = res0
-    if pipe.band:
-        band, pipe.band = pipe.band, {}
-        try:
-            full = pipe.residuals(model, NO_CORRECTION)
-        finally:
-            pipe.band = band
+    full = pipe.with_band({}).residuals(model, NO_CORRECTION) if pipe.band else res0
     fs2 = 0.5 / pipe.h
     out = {}
     for nm, key, inertia in (("moment", "enforced_moment", lambda: model["I"] * pipe.d2beta[:prob.rows["moment"]]),

@@ -9,6 +9,7 @@ samples for cubic-spline inputs (``_discretise``). The residual channels: ``mome
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -61,7 +62,7 @@ class ResidualPipeline:
         self._spring_travel()
         self.channel_names = self._channel_names()
         #: per residual channel: (cutoff Hz, sos) of a zero-phase low-pass applied to it, set by
-        #: :meth:`_Problem.limit_bands` where the measured motion carries sensor noise
+        #: :func:`_problem.choose_bands` where the measured motion carries sensor noise
         self.band: dict = {}
 
     # ---- step 1: the prescribed motion on the fine grid
@@ -202,6 +203,13 @@ class ResidualPipeline:
             # zero phase; padded with the rest value on the left (the run starts at rest)
             self._fspl_cache[key] = scipy.signal.sosfiltfilt(sos, f - f[0], padtype="even") + f[0]
         return self._fspl_cache[key]
+
+    def with_band(self, band: dict) -> "ResidualPipeline":
+        """The same pipeline with the channels of ``band`` compared low-passed (``{channel:
+        (cutoff Hz, sos)}``; the caches of the forces are shared, the original is unchanged)."""
+        new = copy.copy(self)
+        new.band = dict(band)
+        return new
 
     def corrected_forces(self, corr: Corrections, smooth: bool = False) -> dict[str, np.ndarray]:
         """True-force estimate on the fine grid (:class:`Corrections`), the delay applied as a
@@ -456,7 +464,7 @@ class ResidualPipeline:
         of noise then named a mass error of 2.5).
 
         The channel is first tapered to zero over ``0.5 / fc`` at both ends (raised cosine; those
-        rows are inside the rows :meth:`_Problem.limit_bands` leaves out). Even padding still
+        rows are inside the rows :func:`_problem.choose_bands` leaves out). Even padding still
         starts the filter from the noise's value at the record's end: the differentiated sensor
         noise is 1e5-1e6 times the low band's level, and the filter's start from such a value rang
         through the whole record (measured: a van at 500 Hz with 7.7e-5 rad of pitch noise, enforced
