@@ -15,7 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..diagnosis.vehicle._causes import FORCE_DELAY, FORCE_NOISE, FORCE_OFFSET, FORCE_SCALE, PARAMETER_ERROR
+from ..diagnosis.vehicle._causes import (FORCE_DELAY, FORCE_GAIN_DRIFT, FORCE_NOISE, FORCE_OFFSET, FORCE_SCALE,
+                                         PARAMETER_ERROR)
 from ..io._csvio import DEFAULT_MODEL
 
 __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES",
@@ -25,10 +26,10 @@ __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_ru
 SIZES = {
     "realistic": {FORCE_NOISE.name: (10.0, 40.0), FORCE_OFFSET.name: (30.0, 120.0),
                   FORCE_SCALE.name: (0.01, 0.05), FORCE_DELAY.name: (0.002, 0.010),
-                  PARAMETER_ERROR.name: (0.04, 0.10)},
+                  PARAMETER_ERROR.name: (0.04, 0.10), FORCE_GAIN_DRIFT.name: (5e-4, 2e-3)},
     "small": {FORCE_NOISE.name: (2.0, 5.0), FORCE_OFFSET.name: (8.0, 20.0),
               FORCE_SCALE.name: (0.003, 0.008), FORCE_DELAY.name: (0.0006, 0.002),
-              PARAMETER_ERROR.name: (0.015, 0.03)},
+              PARAMETER_ERROR.name: (0.015, 0.03), FORCE_GAIN_DRIFT.name: (1.5e-4, 4e-4)},
 }
 
 #: parameters a run reveals, by the channels it has (without spring travel the chassis
@@ -173,7 +174,8 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
 
 
 def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = None) -> dict:
-    """Measured forces from the true ones: ``scale * true(t - delay) + offset + noise``.
+    """Measured forces from the true ones: ``(1 + drift (t - t_mid)) scale true(t - delay) + offset
+    + noise``.
 
     ``delayed``: {channel: true force at t - delay} (from :func:`simulate_true_run`'s extra
     times); noise from ``numpy.random.default_rng(seed)``.
@@ -182,9 +184,12 @@ def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = 
     for e in effects:
         if e["cause"] == FORCE_DELAY.name:
             meas[e["channel"]] = np.array(delayed[e["channel"]], dtype=float)
+    t = np.asarray(true["t"], dtype=float)
     for e in effects:
         if e["cause"] == FORCE_SCALE.name:
             meas[e["channel"]] = meas[e["channel"]] * float(e["value"])
+        if e["cause"] == FORCE_GAIN_DRIFT.name:  # the gain drifts linearly about the run's middle
+            meas[e["channel"]] = meas[e["channel"]] * (1.0 + float(e["value"]) * (t - 0.5 * (t[0] + t[-1])))
     for e in effects:
         if e["cause"] == FORCE_OFFSET.name:
             meas[e["channel"]] = meas[e["channel"]] + float(e["value"])

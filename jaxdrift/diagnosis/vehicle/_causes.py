@@ -272,9 +272,10 @@ PARAMETER_ERROR = ParameterError()
 FORCE_NOISE = ForceNoise()
 
 #: the candidate kinds, in the order their candidates are tried
-VEHICLE_CAUSES: tuple[CauseKind, ...] = (FORCE_OFFSET, FORCE_SCALE, FORCE_DELAY, PARAMETER_ERROR)
+VEHICLE_CAUSES: tuple[CauseKind, ...] = (FORCE_OFFSET, FORCE_SCALE, FORCE_DELAY, FORCE_GAIN_DRIFT,
+                                         PARAMETER_ERROR)
 SENSOR_KINDS = tuple(k for k in VEHICLE_CAUSES if k.is_sensor)
-_BY_NAME = {k.name: k for k in (*VEHICLE_CAUSES, FORCE_GAIN_DRIFT, FORCE_NOISE)}
+_BY_NAME = {k.name: k for k in (*VEHICLE_CAUSES, FORCE_NOISE)}
 
 
 def kind_named(name: str):
