@@ -92,7 +92,7 @@ def run_diagnose(args) -> int:
         from ..io._attitude_files import read_attitude_run
 
         run, part_warning = analysed_part(read_attitude_run(args.run, checks=True, **opts))
-        for w in run["warnings"] + ([part_warning] if part_warning else []):
+        for w in [*run["warnings"], *([part_warning] if part_warning else [])]:
             c.warn(w)
         for n in run["info"]["notes"]:
             c.info(n)
