@@ -72,10 +72,10 @@ def analysed_part(run: dict) -> tuple[dict, str | None]:
     (``SEGMENTS_JOINT`` in ``_pipeline``); otherwise its longest segment does, and the warning
     names what is left out (never NaN rows into a diagnosis that assumes finite rates)."""
     from ...io import attitude_segments
-    from . import _pipeline
+    from ._pipeline import SEGMENTS_JOINT
 
     segs = run.get("time_base", {}).get("segments") or [[0, len(run["t"])]]
-    if getattr(_pipeline, "SEGMENTS_JOINT", False) or segs == [[0, len(run["t"])]]:
+    if SEGMENTS_JOINT or segs == [[0, len(run["t"])]]:
         return run, None
     parts = attitude_segments(run)
     best = max(parts, key=lambda p: len(p["t"]))
