@@ -68,7 +68,10 @@ def _own_vs_truth(entry: dict, true: float, floor_se: float) -> dict:
             "precise_median_abs_error": statistics.median(abs(r["estimate"] - true) for r in pr if r["se"] < floor_se)
             if prec else None,
             "inverse_variance_mean_error": sum(wi * (r["estimate"] - true) for wi, r in zip(w, pr)) / sum(w),
-            "inverse_variance_se": 1.0 / math.sqrt(sum(w))}
+            "inverse_variance_se": 1.0 / math.sqrt(sum(w)),
+            # the largest share of one run in the joint estimate's weights (where the campaign records them)
+            "largest_weight_share": (max(r["weight"] for r in pr) / sum(r["weight"] for r in pr)
+                                     if all("weight" in r for r in pr) else None)}
 
 
 def score(truth_dir: str, out_dir: str, floor: float = 2e-4) -> dict:
