@@ -19,6 +19,7 @@ import numpy as np
 from scipy import stats
 
 from ...models._quaternion import skew_np
+from .._diffnoise import first_plateau, white_factor
 from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, finding, fmt
 
 __all__ = ["array_residual", "array_fit", "rigidity_rms", "gyro_noise_power", "white_rigidity_power", "array_step"]
@@ -267,18 +268,11 @@ def white_rigidity_power(resid, N, blocks, max_order: int = 8):
         if resid.shape[0] - k < 4 * len(blocks):
             break
         d = np.diff(resid, k, axis=0)
-        e = np.sum(d**2, axis=(1, 2)) / (math.comb(2 * k, k) * dof)
+        e = np.sum(d**2, axis=(1, 2)) / (white_factor(k) * dof)
         pb = np.array([e[b[b < len(e)]].mean() for b in blocks])
         m, se = _mean_se(pb)
         ests.append((k, m, se, pb))
-    chosen = None
-    for (k, m, se, _), nxt in zip(ests[:-1], ests[1:]):
-        if abs(m - nxt[1]) <= 3.0 * max(se, nxt[2]) + 1e-300:
-            chosen = nxt
-            break
-    plateau = chosen is not None
-    if chosen is None:
-        chosen = min(ests, key=lambda e: e[1])
+    chosen, plateau, _ = first_plateau(ests)
     k, m, se, pb = chosen
     return {"power": m, "se": se, "per_block": pb, "order": k, "plateau": plateau}
 
