@@ -297,3 +297,39 @@ def test_consistency_flags_the_run_outside_its_interval():
     entry["per_run"][7]["estimate"] = 1.0 + 8 * half
     bad = check_consistency(entry)
     assert not bad["consistent"] and [d["run"] for d in bad["disagreeing_runs"]] == ["r7"]
+
+
+def test_diagnose_cache_outlives_a_change_to_the_joint_stage(tmp_path):
+    """The diagnose stage's code digest leaves out the campaign modules only the later stages run:
+    a change to the joint fit keeps the cached diagnoses, a change anywhere else does not; and the
+    module that diagnoses a run imports none of the left-out ones."""
+    import ast
+
+    from jaxdrift.campaign import _manifest
+
+    root = tmp_path / "pkg"
+    (root / "campaign").mkdir(parents=True)
+    (root / "diagnosis").mkdir()
+    for f in _manifest.AFTER_DIAGNOSIS + ("_tasks.py",):
+        (root / "campaign" / f).write_text("x = 1\n")
+    (root / "diagnosis" / "_fit.py").write_text("y = 1\n")
+
+    def digests():
+        _manifest._CODE.clear()
+        return _manifest.code_digest("diagnose", str(root)), _manifest.code_digest(None, str(root))
+
+    try:
+        d0, full0 = digests()
+        (root / "campaign" / "_joint.py").write_text("x = 2\n")
+        d1, full1 = digests()
+        assert d1 == d0 and full1 != full0
+        (root / "diagnosis" / "_fit.py").write_text("y = 2\n")
+        d2, _ = digests()
+        assert d2 != d0
+    finally:
+        _manifest._CODE.clear()
+    tasks = Path(_manifest.__file__).with_name("_tasks.py")
+    # the campaign's own modules it imports: "from ._x import" and "from . import _x"
+    imported = {n.module if n.module else a.name for n in ast.walk(ast.parse(tasks.read_text()))
+                if isinstance(n, ast.ImportFrom) and n.level == 1 for a in n.names}
+    assert not imported & {f[:-3] for f in _manifest.AFTER_DIAGNOSIS}
