@@ -15,6 +15,11 @@ candidate, a joint Gauss-Newton refit, the Wald test at the single-run level (Bo
 candidates), backward elimination. Then each run's sensor effects are chosen again by the
 single-run selection against the joint vehicle (``_tasks.reselect_task``), and the shared fit is
 repeated with them.
+
+The reported estimate and interval of each chosen parameter are a fixed-effect meta-analysis over
+the runs' own estimates (:func:`meta_analysis`): each run weighted by its whole single-run error
+budget, the sandwich variance plus the resolution floor's, which the stacked fit's one weight per
+run cannot express (:func:`joint_findings`).
 """
 
 from __future__ import annotations
