@@ -74,6 +74,14 @@ class NonlinearCause:
         """The largest size engineers meet, in theta: 'could not show' compares with it."""
         raise NotImplementedError
 
+    def smallest(self, st: States) -> float:
+        """The smallest size engineers meet, in theta: below it 'could not show' is not said."""
+        raise NotImplementedError
+
+    def size_words(self, theta: float, st: States) -> str:
+        """A size in theta, in the words of the sizes engineers meet."""
+        raise NotImplementedError
+
     def describe(self, theta: float, st: States) -> str:
         raise NotImplementedError
 
@@ -99,6 +107,13 @@ class DamperAsymmetry(NonlinearCause):
 
     def typical(self, st):
         return 0.6 / 2.6  # ratio 1.6
+
+    def smallest(self, st):
+        return 0.15 / 2.15  # ratio 1.15
+
+    def size_words(self, theta, st):
+        r = self.to_estimate(abs(theta), st)
+        return f"a rebound/compression ratio of {r:.3g} (or 1/{r:.3g})"
 
     def describe(self, theta, st):
         r = self.to_estimate(theta, st)
@@ -132,6 +147,14 @@ class ProgressiveSpring(NonlinearCause):
     def typical(self, st):
         u = self._u99(st)
         return 1.0 / (3 * u * u)  # +100 % stiffness at the run's 99th-percentile travel
+
+    def smallest(self, st):
+        u = self._u99(st)
+        return 0.2 / (3 * u * u)  # +20 %
+
+    def size_words(self, theta, st):
+        u = self._u99(st)
+        return f"{100 * 3 * theta * u * u:.3g} % more stiffness at the run's 99th-percentile travel"
 
     def describe(self, theta, st):
         u = self._u99(st)
@@ -170,6 +193,12 @@ class BumpStop(NonlinearCause):
 
     def typical(self, st):
         return 10.0
+
+    def smallest(self, st):
+        return 3.0
+
+    def size_words(self, theta, st):
+        return f"a stop {theta:.3g}x the spring reached on {100 * (1 - self.q):.3g} % of the samples"
 
     def describe(self, theta, st):
         share = 100 * (1 - self.q)

@@ -60,11 +60,11 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         src = noise["source"]
         findings.append(FORCE_NOISE.finding(sigma, noise["lo"], noise["hi"], noise["kind"],
                                             src[0].upper() + src[1:] + "."))
-    joint_intervals(findings)
     # model adequacy and the nonlinear suspension (_adequacy): its findings lead, as the linear
-    # findings hold only if the model's form does; no other finding changes
+    # findings hold only if the model's form does; their intervals count in the joint level
     form = assess_model_form(prob, p_ext, corr_ext, res1, dynamic)
     findings = form["findings"] + findings
+    joint_intervals(findings)
     if not findings:
         findings.append({"cause": "none", "evidence": (
             "no systematic cause passes the test and " + noise["source"] +
