@@ -32,8 +32,8 @@ import scipy.signal
 import scipy.stats
 
 from ._detectors import _force_hf_noise
-from ._nonlinear import (AXLES, BumpStop, StateTerm, TyreLiftOff, catalogue, model_states, signatures,
-                         state_words)
+from ._nonlinear import (AXLES, BumpStop, States, StateTerm, TyreLiftOff, catalogue, model_states, signatures,
+                         state_words, travel_response)
 
 #: familywise false-alarm level of the adequacy test (Bonferroni over channels x terms)
 ALPHA = 1e-3
@@ -144,7 +144,7 @@ def _tests(prob, p_ext, st, res1, terms):
         # the residual is y = -theta x signature for a true theta (the correction cancels it)
         S = -np.column_stack([_kept(prob, s[nm], nm) for s in sig_t])
         fc = _band(pipe, nm)
-        out[nm] = {"tests": _channel_test(y, N, S, fs, fc), "S": S, "N": N, "y": y, "fc": fc}
+        out[nm] = {"tests": _channel_test(y, N, S, fs, fc), "S": S, "N": N, "y": y, "fc": fc, "name": nm}
     return out
 
 
@@ -215,6 +215,8 @@ def _named(prob, st, terms, tests, scales, m, correction) -> list[dict]:
         key, phrase = state_words(c)
         band = [0.0, float(d["fc"])]
         if not isinstance(c, StateTerm) and lo < th < hi:
+            th, se, st_c = _refine(prob, st, c, d, th, se)
+            th = min(max(th, lo), hi)
             est = c.to_estimate(th, st)
             iv = sorted((c.to_estimate(max(th - 1.96 * se, lo), st), c.to_estimate(min(th + 1.96 * se, hi), st)))
             ev = (f"{c.describe(th, st)[0].upper()}{c.describe(th, st)[1:]}: the {_WORDS[nm]} left after the "
@@ -246,6 +248,45 @@ def _named(prob, st, terms, tests, scales, m, correction) -> list[dict]:
                  "confirmed": False, "evidence": ev + "."}
         out.append(f)
     return out
+
+
+#: fixed-point iterations of the states under a named cause's force, and their relaxation
+REFINE_ITERS, REFINE_RELAX = 25, 0.5
+
+
+def _refine(prob, st, c, d, th, se):
+    """The cause's size with the states of the model that has it. The states tested against are the
+    linear model's (driven by the measured forces); where the real spring law is stiffer the real
+    travel is smaller than the linear model's at its extremes, so a term read off the linear
+    model's travel comes out too small (a stop 10x the spring: half or less). Iterated to the fixed
+    point: the travel the model moves with ``theta`` times the cause's force at that travel (relaxed,
+    as a stiff stop's loop gain is near one), the cause's signature at that travel, ``theta``
+    refitted. A bump stop keeps the travel of the linear states (its definition). Returns
+    ``(theta, se, states)``."""
+    pipe, p = prob.pipe, st.p
+    if isinstance(c, BumpStop):
+        c.fix_travel(st)
+    fs = 1.0 / pipe.h
+    n = len(st.u[0])
+    zero = np.zeros(n)
+    u, v = [np.array(x) for x in st.u], [np.array(x) for x in st.v]
+    cur = st
+    for _ in range(REFINE_ITERS):
+        f = th * c.force(cur)
+        du, dv = travel_response(pipe, p, (f, zero) if c.axle == 0 else (zero, f))
+        i = c.axle
+        u[i] = (1 - REFINE_RELAX) * u[i] + REFINE_RELAX * (st.u[i] + du[i][:n])
+        v[i] = (1 - REFINE_RELAX) * v[i] + REFINE_RELAX * (st.v[i] + dv[i][:n])
+        cur = States(tuple(u), tuple(v), st.s0, p)
+        f1 = c.force(cur)
+        sig = signatures(pipe, p, (f1, zero) if c.axle == 0 else (zero, f1))
+        S = -_kept(prob, sig[d["name"]], d["name"])[:, None]
+        t, th_new, se, *_ = _channel_test(d["y"], d["N"], S, fs, d["fc"])[0]
+        if abs(th_new - th) <= 1e-4 * abs(th):
+            th = th_new
+            break
+        th = th_new
+    return th, se, cur
 
 
 def _held_out_check(d: dict, j: int, pipe) -> tuple[float, float]:

@@ -175,8 +175,15 @@ class BumpStop(NonlinearCause):
         super().__init__(axle)
         self.q = q
 
+    #: the stop's travel, once fixed (``fix_travel``): the quantile of the linear model's travel
+    u_b = None
+
     def travel(self, st):
-        return float(np.quantile(st.u[self.axle], self.q))
+        return self.u_b if self.u_b is not None else float(np.quantile(st.u[self.axle], self.q))
+
+    def fix_travel(self, st):
+        """Keep the travel of ``st`` while the states move (``_adequacy._refine``)."""
+        self.u_b = float(np.quantile(st.u[self.axle], self.q))
 
     def force(self, st):
         k = st.p["k3" if self.axle == 0 else "k4"]
@@ -274,6 +281,18 @@ def model_states(pipe, p: dict, corr: dict) -> States:
     n = len(s[0])
     return States(tuple(np.asarray(s[i][:n]) - s0[i] for i in (0, 1)), tuple(np.asarray(ds[i][:n]) for i in (0, 1)),
                   s0, p)
+
+
+def travel_response(pipe, p: dict, delta: tuple) -> tuple[tuple, tuple]:
+    """Change of the model's spring travel and rate per axle (fine grid) when the extra spring forces
+    ``delta = (d3, d4)`` act: the model driven by the measured forces then moves its wheels (and, where
+    pitch and heave are not measured, its chassis) differently, and so its travel."""
+    d3, d4 = (np.resize(np.asarray(d, dtype=float), pipe.nf) for d in delta)
+    e1, e2 = _equivalent_forces(pipe, p, d3, d4)
+    forces_c = {"f1": _poly_coeffs(CubicSpline(pipe.tauf, e1)), "f2": _poly_coeffs(CubicSpline(pipe.tauf, e2))}
+    _, _, x = pipe.simulate(p, None, linear_part_only=True, forces_c=forces_c)
+    sg = -1.0 if (pipe.mode == "pitch" and pipe.has_z3) else 1.0
+    return (sg * x[:, 0], sg * x[:, 1]), (sg * x[:, 2], sg * x[:, 3])
 
 
 def _equivalent_forces(pipe, p: dict, d3: np.ndarray, d4: np.ndarray):
