@@ -46,6 +46,26 @@ def test_rear_damper_asymmetry_is_named_with_its_ratio(tmp_path):
     assert f["estimate"] == pytest.approx(1.5, rel=0.1)
     assert f["residual"]["rms_with"] < f["residual"]["rms_without"]
     assert rep["extended_model"]["nonlinear"]["damper_ratio4"] == pytest.approx(f["estimate"])
+    # confirmed on the held-out half of the record, and counted in the joint interval level
+    assert f["confirmed"] is True and "second half" in f["evidence"]
+    assert f["interval_level"]["findings"] >= 2
+    # the run shows it: no 'could not show' for it
+    assert not any("damper_asymmetry[d4]" in n for n in rep["notes"] if n.startswith("Could not show"))
+
+
+def test_bump_stop_size_is_the_generators(tmp_path):
+    """A stop 8x the rear spring reached on 3 % of the samples (spring travel measured, no noise):
+    the stiffness is read off the travel of the model that has the stop, not the linear model's
+    (which overshoots the stop by half again and gives a sixth of the stiffness), and matches the
+    generator's k_b within 5 % (what is left: the stop's travel, a quantile of the model's travel
+    where the generator takes one of a linear pre-run)."""
+    case = _case([{"cause": "bump_stop", "parameter": "k4", "share": 0.03, "ratio": 8.0}], duration=8.0)
+    rep = _diagnose(tmp_path, case)
+    truth = case["effects"][0]["value"]
+    f = rep["findings"][0]
+    assert (f["cause"], f["parameter"]) == ("bump_stop", "k4"), rep["findings"]
+    assert f["estimate"] == pytest.approx(truth, rel=0.05)
+    assert rep["extended_model"]["nonlinear"]["stop_k4"] == pytest.approx(f["estimate"])
 
 
 @pytest.mark.slow
@@ -56,13 +76,15 @@ def test_effect_free_run_has_no_model_form_finding(tmp_path):
 
 @pytest.mark.slow
 def test_progressive_spring_pitch_only_says_it_could_not_show(tmp_path):
-    """A progressive front spring with forces and pitch only: the run cannot show it, and the
-    report says so and names the spring travel."""
+    """A progressive front spring with forces and pitch only: either the run shows it (first
+    finding) or the report says it could not and names the spring travel, never both."""
     rep = _diagnose(tmp_path, _case([{"cause": "progressive_spring", "parameter": "k3", "stiffening": 0.5}],
                                     channels="beta", noise=2.0))
     assert not [f for f in rep["findings"] if f["cause"] in FORM - {"progressive_spring"}]
     notes = " ".join(n for n in rep["notes"] if n.startswith("Could not show"))
-    assert rep["findings"][0]["cause"] == "progressive_spring" or "progressive_spring[k3] (spring travel s1" in notes
+    found = rep["findings"][0]["cause"] == "progressive_spring"
+    said = "progressive_spring[k3] (spring travel s1 would show it)" in notes
+    assert found != said, (rep["findings"][:2], notes)
 
 
 def _smooth_force(n, rng, mean, spread):
