@@ -109,3 +109,43 @@ def test_lift_off_detector_on_synthetic_forces(seed):
     near = 4000.0 + (f - 4000.0) * (4000.0 - 120.0) / (4000.0 - f.min())
     assert TyreLiftOff("f1").detect(near + 2.0 * rng.standard_normal(n), 2.0) is None
     assert TyreLiftOff("f1").detect(_smooth_force(n, rng, 4000.0, 500.0), 2.0) is None
+
+
+def test_could_not_show_follows_the_two_conditions_of_a_finding():
+    """The detection limit is the smallest size meeting both conditions of a finding (power over the
+    Bonferroni threshold and the practical floor): a term that is significant at tiny sizes but
+    whose signature is too small for the floor (pitch seeing a spring law) is 'could not show'; one
+    whose limit lies between the smallest and largest usual size is 'smaller than'; one that shows
+    the smallest size gets no note."""
+    import math
+    from types import SimpleNamespace
+
+    import scipy.stats
+
+    from jaxdrift.diagnosis.vehicle import _adequacy as A
+    from jaxdrift.diagnosis.vehicle._nonlinear import DamperAsymmetry, States
+
+    n = 4000
+    u = 0.02 * np.sin(np.linspace(0, 60, n))
+    st = States((u, u), (10 * u, 10 * u), (0.1, 0.1), {"k3": 2e4, "k4": 2e4, "d3": 1500.0, "d4": 1500.0})
+    terms = [DamperAsymmetry(0)]
+    prob = SimpleNamespace(pipe=SimpleNamespace(has_s=(False, False)))
+    m, dof = 12, 2000
+    tcrit = scipy.stats.t.isf(A.ALPHA / m / 2, dof)
+
+    def notes(se, s_rms):
+        tests = {"moment": {"tests": [(0.0, 0.0, se, dof, 0, 0)], "S": np.full((n, 1), s_rms)}}
+        lim = A.detection_limit(0, tests, {"moment": 100.0}, m)
+        assert lim == pytest.approx(max((tcrit + A.POWER_Z) * se, A.PRACTICAL * 100.0 / s_rms))
+        return " ".join(A._could_not_show(prob, st, terms, tests, {"moment": 100.0}, m))
+
+    tiny_se = 1e-6
+    # significant at any size, but the part explained by the largest size (0.23 x 1 N) is under 1 N
+    assert "damper_asymmetry[d3] (spring travel s1 would show it)" in notes(tiny_se, 1.0)
+    # the floor is met from theta = 0.1 (ratio 1.22): inside the usual sizes
+    said = notes(tiny_se, 10.0)
+    assert "damper_asymmetry[d3] smaller than a rebound/compression ratio of 1.22" in said
+    # shows the smallest usual size (theta 0.07) too: nothing said
+    assert notes(tiny_se, 1000.0) == ""
+    assert math.isinf(A.detection_limit(0, {"moment": {"tests": [(0, 0, float("nan"), dof, 0, 0)],
+                                                       "S": np.ones((n, 1))}}, {"moment": 1.0}, m))
