@@ -22,7 +22,9 @@ Examples (the numbers quoted in ``docs/diagnosis.md``)::
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
 import json
+import time
 
 import numpy as np
 
@@ -59,6 +61,7 @@ def main(argv=None):
     model = dict(OTHER_VEHICLE if a.other_vehicle else DEFAULT_MODEL)
     chan_sets = [tuple(c.split(",")) for c in a.channels.split(";")]
     rng = np.random.default_rng(a.seed)
+    t0 = time.perf_counter()
     first_ok = covered = total = 0
     for k in range(a.n):
         case = rg.draw_sweep_case(rng, chan_sets, noise=not a.no_noise)
@@ -90,9 +93,13 @@ def main(argv=None):
             f"inside their 95 % intervals ({100.0 * covered / max(total, 1):.0f} %)")
     print(line)
     if a.json:
+        from _common import machine_info
+
         with open(a.json, "w") as fh:
-            json.dump({"args": vars(a), "runs": a.n, "first": first_ok, "covered": covered, "total": total}, fh,
-                      indent=2)
+            json.dump({"benchmark": "diagnose_sweep", "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                       "args": vars(a), "runs": a.n, "first": first_ok, "covered": covered, "total": total,
+                       "wall_s": time.perf_counter() - t0, "machine": machine_info()}, fh, indent=2)
+            fh.write("\n")
 
 
 if __name__ == "__main__":

@@ -7,12 +7,16 @@ sampled 4x faster, and that faster run decimated back to the drawn rate with an 
 filter (scipy ``decimate``, FIR, zero phase). If the floor vanishes after decimation it is aliasing
 of force content above the Nyquist frequency, not the pipeline.
 
-    python benchmarks/independent/aliasing_floor.py --seed 31 --index 11
+    python benchmarks/independent/aliasing_floor.py --seed 31 --index 11   # ~15 s
+
+writes ``benchmarks/results/aliasing-floor.json`` (``--out``; docs/diagnosis.md quotes it).
 """
 
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
+import json
 import os
 import sys
 import tempfile
@@ -24,6 +28,8 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
 import gen_vehicle as gv  # noqa: E402
 import sweep  # noqa: E402
+
+RESULTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "results")
 
 
 def lowband_sigma(full: dict, decim: int | None = None) -> tuple[float, float]:
@@ -48,18 +54,33 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=31, help="design seed (default 31)")
     ap.add_argument("--index", type=int, default=11, help="case index in the design (default 11)")
     ap.add_argument("--n", type=int, default=80, help="design size the case comes from (default 80)")
+    ap.add_argument("--out", default=os.path.join(RESULTS, "aliasing-floor.json"), help="JSON result file")
     a = ap.parse_args(argv)
     case = next(c for c in gv.design(a.n, a.seed) if c["index"] == a.index)
     full = dict(gv.make_case(case, **sweep.SIZING["vehicle"]), effects=[], motion_noise={}, precision=9)
     print(f"case {a.index} of seed {a.seed}: {full['road_class']} road, {full['speed']:.1f} m/s, "
           f"{full['fs']:.0f} Hz, {full['duration']} s, channels {full['channel_set']}; no effect, no noise")
+    res = {"benchmark": "aliasing_floor", "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+           "design_seed": a.seed, "index": a.index, "design_n": a.n,
+           "case": {k: full[k] for k in ("road_class", "speed", "fs", "duration", "channel_set", "vehicle_kind")}}
     s, fs = lowband_sigma(full)
+    res["as_drawn"] = {"fs_hz": fs, "lowband_sigma_N": s}
     print(f"as drawn ({fs:.0f} Hz): low-band force-noise level {s:.4g} N")
     fast = dict(full, fs=4 * full["fs"])
     s, fs = lowband_sigma(fast)
+    res["fast"] = {"fs_hz": fs, "lowband_sigma_N": s}
     print(f"sampled 4x faster ({fs:.0f} Hz): {s:.4g} N")
     s, fs = lowband_sigma(fast, decim=4)
+    res["decimated"] = {"fs_hz": fs, "lowband_sigma_N": s}
     print(f"4x faster, anti-aliased and decimated back ({fs:.0f} Hz): {s:.4g} N")
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    from _common import machine_info
+
+    res["machine"] = machine_info()
+    with open(a.out, "w") as fh:
+        json.dump(res, fh, indent=2)
+        fh.write("\n")
+    print(f"wrote {a.out}")
 
 
 if __name__ == "__main__":
