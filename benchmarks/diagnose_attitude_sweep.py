@@ -133,7 +133,13 @@ def main(argv=None):
                          "findings": got, "first": first, "misses": misses, "yaw_rate_rms": yaw_rms})
     print(f"\nright causes first: {n_first} of {a.n}; true values inside their 95 % intervals: {n_in} of {n_total}")
     if a.json:
-        Path(a.json).write_text(json.dumps({"seed": a.seed, "n": a.n, "first": n_first, "inside": n_in,
+        import datetime as _dt
+
+        from _common import machine_info
+
+        Path(a.json).write_text(json.dumps({"benchmark": "diagnose_attitude_sweep", "args": vars(a),
+                                            "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                                            "machine": machine_info(), "seed": a.seed, "n": a.n, "first": n_first, "inside": n_in,
                                             "total": n_total, "runs": rows}, indent=1, default=str) + "\n")
 
 
