@@ -78,6 +78,7 @@ def test_key_selections_and_aggregates():
     assert _quoted.lookup(rows, "rows.0:2.r.0|sum") == pytest.approx(2.52)
     assert _quoted.lookup(rows, "rows.*.u|len") == 1  # elements without the key are dropped under '*'
     assert _quoted.lookup(rows, "ns.[(b,a)].w|ratio") == 4.0
+    assert _quoted.lookup({"c": {"x, y": 6.0, "z": 2.0}}, "c.[(x, y;z)]|ratio") == 3.0
     assert _quoted.lookup(rows, "v.0|sqrt") == 2.0 and _quoted.lookup(rows, "v.0|inv") == 0.25
     with pytest.raises(_quoted.QuoteError, match="unknown aggregate"):
         _quoted.lookup(rows, "v.0|mean")
