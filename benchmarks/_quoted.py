@@ -303,7 +303,7 @@ def throughput_table(root: Path) -> str:
 
 @block("real-logs-table")
 def _real_logs_table(root: Path) -> str:
-    """docs/real-data.md: one row per log of docs/validation/real_logs.json (benchmarks/real_logs.py)."""
+    """docs/real-data.md: one row per log of docs/validation/real_logs.json (benchmarks/validation/real_logs.py)."""
     r = json.loads((root / "docs/validation/real_logs.json").read_text())
 
     def g(x):

@@ -5,7 +5,7 @@ Each draw (``jaxdrift.studies._rungen.draw_sweep_case``, the slow test's draw) p
 sampling rate, a channel set, an effect size ("realistic" or "small"), 0-2 systematic effects plus
 force noise, a speed of 8-30 m/s and an ISO 8608 class A-C road, makes the run with ``jaxdrift.studies._rungen.make_run`` and
 diagnoses it (without the force-driven simulation, which does not change the findings), and scores
-the report with ``benchmarks/_scoring.score_report`` (the slow test's rule). Prints every miss and a
+the report with ``benchmarks/validation/scoring.score_report`` (the slow test's rule). Prints every miss and a
 summary line; ``--json`` writes the counts.
 
 Examples (the numbers quoted in ``docs/diagnosis.md``)::
@@ -28,7 +28,11 @@ import time
 
 import numpy as np
 
-from _scoring import score_report
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: benchmarks.validation
+from benchmarks.validation.scoring import score_report  # noqa: E402
 
 #: a vehicle unlike the seed's (heavier, longer, softer), to check nothing is tuned to the default
 OTHER_VEHICLE = dict(a=1.3, b=1.5, m1=40.0, m2=45.0, m3=1400.0, I=2200.0, k1=3e5, k2=3e5, k3=6e4,

@@ -1,17 +1,14 @@
 """Model adequacy and the nonlinear suspension causes, on runs of the independent generator
-(benchmarks/independent/gen_vehicle.py: scipy DOP853 on its own half-car and road, sharing no code
+(benchmarks/validation/gen_vehicle.py: scipy DOP853 on its own half-car and road, sharing no code
 with jaxdrift), and the tyre lift-off detector on synthetic forces."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
-import gen_vehicle as gen  # noqa: E402
+from benchmarks.validation import gen_vehicle as gen
 
 import jaxdrift  # noqa: E402
 from jaxdrift.diagnosis.vehicle._nonlinear import TyreLiftOff  # noqa: E402

@@ -6,14 +6,12 @@ after regenerating a result: ``python benchmarks/readme_table.py``.
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
-import _quoted  # noqa: E402
+from benchmarks import _quoted
 
 DOCS = _quoted.doc_files(ROOT)
 

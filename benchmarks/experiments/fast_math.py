@@ -9,7 +9,7 @@ difference over the ensemble spread, and the ratio of the ensemble variances.
 
 Reproduce::
 
-    python benchmarks/fast_math.py           # writes benchmarks/results/fast-math.{json,md}
+    python benchmarks/experiments/fast_math.py           # writes benchmarks/results/fast-math.{json,md}
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 _CHILD = r"""
@@ -101,7 +101,7 @@ def main(argv=None):
         r = acc[name]
         md.append(f"| {name} | {res['off'][name]:.0f} | {res['on'][name]:.0f} | {r['max_diff_over_spread']:.1e} | "
                   f"[{r['var_ratio_range'][0]:.6f}, {r['var_ratio_range'][1]:.6f}] |")
-    cmd = "python benchmarks/fast_math.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    cmd = "python benchmarks/experiments/fast_math.py " + " ".join(sys.argv[1:] if argv is None else argv)
     md += ["", f"Reproduce: `{cmd.strip()}`"]
     from _common import write_results
 

@@ -1,5 +1,5 @@
 """Accelerometer noise against non-rigidity: false alarms on clean rigid arrays, and the size of
-``accel_noise``, measured on runs of the independent generator (``benchmarks/independent/gen_attitude.py``).
+``accel_noise``, measured on runs of the independent generator (``benchmarks/validation/gen_attitude.py``).
 
 Each of ``--n`` runs is a rigid accelerometer array (4-8 sensors on a vehicle-sized box, the
 generator's ``draw_array``) with white gyro noise, a reference attitude on every row, every 10th or
@@ -21,8 +21,8 @@ whose share is about 0.008 m/s^2): mean and standard error of estimate / truth, 
 
 Reproduce (the numbers in docs/attitude.md; about 10 s per run on one core)::
 
-    python benchmarks/attitude_array_noise.py --seed 4242 --n 40 --json out/array_noise.json
-    python benchmarks/attitude_array_noise.py --bias 12
+    python benchmarks/validation/attitude_array_noise.py --seed 4242 --n 40 --json out/array_noise.json
+    python benchmarks/validation/attitude_array_noise.py --bias 12
 """
 
 from __future__ import annotations
@@ -36,8 +36,8 @@ import tempfile
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE / "independent"))
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/
+sys.path.insert(0, str(HERE.parent))  # run as a script: the repository root
 
 SYSTEMATIC = ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")
 
@@ -46,7 +46,7 @@ def draw_case(i, seed):
     """Case ``i`` of the design: a rigid array, clean (even i) or with accelerometer noise (odd i)."""
     import numpy as np
 
-    import gen_attitude as ga
+    from benchmarks.validation import gen_attitude as ga
 
     rng = np.random.default_rng([seed, i])
     noisy = i % 2 == 1
@@ -62,7 +62,7 @@ def draw_case(i, seed):
 
 
 def run_case(full, tmp):
-    import gen_attitude as ga
+    from benchmarks.validation import gen_attitude as ga
     import jaxdrift
 
     paths = ga.make_run(full, tmp, name=f"r{full['index']}")

@@ -16,7 +16,7 @@ library because it does worse (see ``docs/variance.md``).
 
 Reproduce (about a minute; needs ``benchmarks/results/variance.json`` from ``benchmarks/variance.py``)::
 
-    python benchmarks/moment_closure.py
+    python benchmarks/experiments/moment_closure.py
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 
@@ -127,7 +127,7 @@ def main(argv=None):
             f"{yn[z['linearised_inside']]} | {z['cubature_std_ratio']:.3f} | {yn[z['cubature_inside']]} |"
         )
     lines += ["", f"Linearised: {t_lin:.1f} s, cubature closure: {t_cub:.1f} s (including compilation).", "",
-              "Reproduce: `python benchmarks/moment_closure.py`", ""]
+              "Reproduce: `python benchmarks/experiments/moment_closure.py`", ""]
     md = "\n".join(lines)
     jp, mp = write_results("moment-closure", report, md)
     print(md)

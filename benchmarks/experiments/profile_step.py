@@ -9,7 +9,7 @@ noisy sampled forces, and of the fast kernel with the forces held constant (no p
 
 Reproduce (about 3 minutes on 2 cores)::
 
-    python benchmarks/profile_step.py
+    python benchmarks/experiments/profile_step.py
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 

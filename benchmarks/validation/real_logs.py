@@ -22,8 +22,8 @@ with an interval that contains it; no report value is inf or NaN; no ``gyro_scal
 
 Needs ``pip install -e ".[ulog]"`` (pyulog, and jaxdrift's ULog reader). Examples::
 
-    python benchmarks/real_logs.py tests/data/ulog/*.ulg --out docs/validation/real_logs.json
-    python benchmarks/real_logs.py tests/data/ulog/*.ulg --export /tmp/csv --out docs/validation/real_logs_csv.json
+    python benchmarks/validation/real_logs.py tests/data/ulog/*.ulg --out docs/validation/real_logs.json
+    python benchmarks/validation/real_logs.py tests/data/ulog/*.ulg --export /tmp/csv --out docs/validation/real_logs_csv.json
 """
 
 from __future__ import annotations
@@ -44,7 +44,7 @@ def read_ulog(path):
     try:
         from pyulog import ULog
     except ImportError:
-        sys.exit("benchmarks/real_logs.py needs pyulog: pip install pyulog")
+        sys.exit("benchmarks/validation/real_logs.py needs pyulog: pip install pyulog")
     u = ULog(str(path), ["sensor_combined", "vehicle_attitude", "estimator_sensor_bias"])
     sc = u.get_dataset("sensor_combined")
     va = u.get_dataset("vehicle_attitude")

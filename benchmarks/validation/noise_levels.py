@@ -7,7 +7,7 @@ level was reported, and the first finding. This is how the reporting rules for s
 docs/diagnosis.md ("Noise level") were measured, e.g. the low band of runs without noise at
 500-2000 Hz:
 
-    python benchmarks/independent/noise_levels.py --seed 777 --out /tmp/levels.jsonl \\
+    python benchmarks/validation/noise_levels.py --seed 777 --out /tmp/levels.jsonl \\
         --fs-min 300 --fs-max 600 --noise-free
 """
 
@@ -20,9 +20,8 @@ import shutil
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import gen_vehicle as gv  # noqa: E402
-import sweep  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))  # run as a script: the repository root
+from benchmarks.validation import gen_vehicle as gv, sweep  # noqa: E402
 
 
 def main(argv=None):

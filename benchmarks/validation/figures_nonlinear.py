@@ -5,7 +5,7 @@ One run of the independent generator per effect (passenger car, ISO class C road
 8 s, pitch, heave and both spring travels measured, no noise), compared with the linear model it is
 given: the rear spring force residual (model spring force driven by the measured wheel force against
 ``k s + d s'`` of the measured travel) against the state it depends on; for tyre lift-off the
-measured front wheel force and its histogram. ``python benchmarks/independent/figures_nonlinear.py
+measured front wheel force and its histogram. ``python benchmarks/validation/figures_nonlinear.py
 [--out docs/figures]``.
 """
 
@@ -20,9 +20,9 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 
-import gen_vehicle as gen  # noqa: E402
+from benchmarks.validation import gen_vehicle as gen  # noqa: E402
 
 EFFECTS = {
     "damper_asymmetry": {"cause": "damper_asymmetry", "parameter": "d4", "value": 1.5},

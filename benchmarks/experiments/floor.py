@@ -18,7 +18,7 @@ is printed next to the target.
 
 Reproduce (about 3 minutes on 2 idle cores)::
 
-    python benchmarks/floor.py
+    python benchmarks/experiments/floor.py
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import os
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 
@@ -123,7 +123,7 @@ def main(argv=None):
     md = (f"Floor of the half-car study ({a.dtype}, {B} paths x {T:g} s, fixed 1 ms DOPRI5, "
           f"{a.rounds} interleaved rounds, best kept; load average at end "
           f"{out['load_average_at_end'][0]:.1f}). Noise draw alone: {ns['noise']:.0f} ns per path-step.\n\n"
-          + "\n".join(rows) + "\n\nReproduce: `python benchmarks/floor.py"
+          + "\n".join(rows) + "\n\nReproduce: `python benchmarks/experiments/floor.py"
           + ("" if a.dtype == "float64" else f" --dtype {a.dtype}") + "`\n")
     jp, mp = write_results(a.out, out, md)
     print(md)

@@ -16,7 +16,7 @@ with a per-path index; in the fixed mode all paths share the index.
 
 Reproduce (about a minute)::
 
-    python benchmarks/adaptive_cost.py
+    python benchmarks/experiments/adaptive_cost.py
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import os
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 
@@ -82,7 +82,7 @@ def main(argv=None):
     rows += [f"| {k} | {ns[k]:.0f} | {steps[k] / a.paths:.0f} |" for k in fns]
     md = (f"Cost per step of jaxdrift's modes, half-car study, {a.paths} paths x {T:g} s, float64, {a.rounds} "
           f"interleaved rounds, best kept; load average at end {os.getloadavg()[0]:.1f}.\n\n" + "\n".join(rows)
-          + "\n\nReproduce: `python benchmarks/adaptive_cost.py`\n")
+          + "\n\nReproduce: `python benchmarks/experiments/adaptive_cost.py`\n")
     out = {"machine": machine_info(), "load_average_at_end": list(os.getloadavg()),
            "config": {"paths": a.paths, "seconds": T, "rounds": a.rounds},
            "ns_per_path_step": ns, "steps_per_path": {k: steps[k] / a.paths for k in fns}}

@@ -23,8 +23,8 @@ import sys
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import gen_vehicle as gv  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))  # run as a script: the repository root
+from benchmarks.validation import gen_vehicle as gv  # noqa: E402
 
 #: sensor effects a logger may carry
 SENSOR = [(c, ch) for c in ("force_offset", "force_scale", "force_delay") for ch in ("f1", "f2")]

@@ -9,10 +9,10 @@
 2. ``white_orders``: how far apart white noise's levels read from its 4th, 6th and 8th differences
    (the rule that decides estimate or upper bound) on records of 5000 samples.
 3. ``independent_run``: the same three levels on the forces of one independent run
-   (``benchmarks/independent/gen_vehicle.py``: the first case of the design drawn at 500 Hz, with no
+   (``benchmarks/validation/gen_vehicle.py``: the first case of the design drawn at 500 Hz, with no
    effect but 2 N of white force noise): real force content reads less at each higher order.
 
-    python benchmarks/diagnosis_noise_checks.py            # ~40 s; writes benchmarks/results/diagnosis-noise-checks.json
+    python benchmarks/validation/diagnosis_noise_checks.py            # ~40 s; writes benchmarks/results/diagnosis-noise-checks.json
 """
 
 from __future__ import annotations
@@ -27,12 +27,11 @@ import time
 import numpy as np
 import scipy.signal
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "independent"))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))  # run as a script: the repository root
 
-from _common import RESULTS, machine_info  # noqa: E402
+from benchmarks._common import RESULTS, machine_info  # noqa: E402
 
-ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
 
 def envelope(records: int, samples: int, fs: float, seed: int) -> dict:
@@ -80,8 +79,7 @@ def white_orders(n: int, draws: int, seed: int) -> dict:
 
 
 def independent_run(design_seed: int, noise: float, fs: float) -> dict:
-    import gen_vehicle as gv
-    import sweep
+    from benchmarks.validation import gen_vehicle as gv, sweep
 
     from jaxdrift.diagnosis.vehicle._detectors import WHITE_ORDERS
 

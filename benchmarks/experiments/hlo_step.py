@@ -2,13 +2,13 @@
 
 Compiles the half-car study's step loop (256 paths, 1 ms steps, as ``jax.jit(jax.vmap(path))``)
 with ``jax.jit(...).lower(...).compile().as_text()`` in the layouts of
-``benchmarks/engine_layouts.py`` and counts, in the body of the innermost ``while`` loop (the
+``benchmarks/experiments/engine_layouts.py`` and counts, in the body of the innermost ``while`` loop (the
 steps), the fusions and other kernels, and the ``sine``/``cosine`` operations inside the fusions
 it calls. Writes ``benchmarks/results/hlo-step.{json,md}`` and, with ``--dump DIR``, the HLO text.
 
 Reproduce::
 
-    python benchmarks/hlo_step.py
+    python benchmarks/experiments/hlo_step.py
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import re
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 
@@ -125,7 +125,7 @@ def main(argv=None):
           "| variant | fusions | all kernels | sine | cosine |", "|---|---:|---:|---:|---:|"]
     md += [f"| {k} | {r['fusions']} | {r['kernels']} | {r['sine']} | {r['cosine']} |" for k, r in res.items()]
     md += ["", "`sine`/`cosine`: operations inside the fusions (each is evaluated for every element of its fusion's "
-           "output rows that use it). Reproduce: `python benchmarks/hlo_step.py`"]
+           "output rows that use it). Reproduce: `python benchmarks/experiments/hlo_step.py`"]
     write_results("hlo-step", {"paths": a.paths, "variants": res}, "\n".join(md) + "\n")
     print("\n".join(md))
     return 0

@@ -9,19 +9,22 @@ nominal section forces of every variant (``jaxdrift.durability.section_forces``)
 central differences of the noisy pitch (no filter), and the ``measured`` variant from the true
 spring travel with 1e-5 m of noise.
 
-    python benchmarks/durability_sweep.py            # writes benchmarks/results/durability-sweep.{json,md}
-    python benchmarks/durability_sweep.py --quick    # 4 runs, no files
+    python benchmarks/validation/durability_sweep.py            # writes benchmarks/results/durability-sweep.{json,md}
+    python benchmarks/validation/durability_sweep.py --quick    # 4 runs, no files
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from _common import RESULTS, machine_info
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))  # run as a script: the repository root
+from benchmarks._common import RESULTS, machine_info  # noqa: E402
 
 ROADS = ("B", "C", "D", "E")
 RATES = (200.0, 500.0, 1000.0, 2000.0)
@@ -110,7 +113,7 @@ def main(argv=None):
             print(json.dumps({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()}), flush=True)
     meta = {"n_runs": len(grid), "duration_s": a.duration, "force_noise_N": a.force_noise,
             "seconds": round(time.perf_counter() - t0, 1),
-            "command": "python benchmarks/durability_sweep.py" + (" --quick" if a.quick else ""),
+            "command": "python benchmarks/validation/durability_sweep.py" + (" --quick" if a.quick else ""),
             "machine": machine_info()}
     st = np.array([r["stabilised"] for r in rows])
     print(f"stabilised worst |ratio-1| {np.max(np.abs(st - 1)):.4f}; {meta['seconds']} s")

@@ -16,7 +16,7 @@ Every case is checked against the same integrator on ``model`` (largest differen
 
 Reproduce (about 3 minutes on 2 cores)::
 
-    python benchmarks/rhs_variants.py
+    python benchmarks/experiments/rhs_variants.py
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import os
 import sys
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 
@@ -124,7 +124,7 @@ def main(argv=None):
                     + ", ".join(f"{diff[(s, v)]:.1e}" for v in fields if v != "model") + " |")
     md = (f"Vector-field formulations and loop unrolling, half-car study, {a.paths} paths x {T:g} s, fixed 1 ms "
           f"DOPRI5, {a.rounds} interleaved rounds, best kept; load average at end {os.getloadavg()[0]:.1f}.\n\n"
-          + "\n".join(rows) + "\n\nReproduce: `python benchmarks/rhs_variants.py`\n")
+          + "\n".join(rows) + "\n\nReproduce: `python benchmarks/experiments/rhs_variants.py`\n")
     out = {"machine": machine_info(), "load_average_at_end": list(os.getloadavg()),
            "config": {"paths": a.paths, "seconds": T, "dt": dt, "rounds": a.rounds},
            "ns_per_path_step": {f"{s} / {v}": ns[(s, v)] for s, v in fns},

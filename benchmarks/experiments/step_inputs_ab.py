@@ -14,7 +14,7 @@ The switches act at trace time. Prints process CPU time and wall time per path-s
 median of ``R`` rounds) and the largest difference of each variant's pitch/heave from the old
 loop's. Reproduce::
 
-    NDEV=1 B=256 T=2 R=5 python benchmarks/step_inputs_ab.py
+    NDEV=1 B=256 T=2 R=5 python benchmarks/experiments/step_inputs_ab.py
 """
 
 import os
@@ -22,7 +22,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # benchmarks/: _common, _setup
 
 import jax  # noqa: E402
 

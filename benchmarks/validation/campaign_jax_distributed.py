@@ -1,8 +1,8 @@
 """The campaign's force-noise Monte Carlo across two processes joined by ``jax.distributed``,
 against the same campaign in one process.
 
-    python benchmarks/independent/gen_campaign.py --n 2 --seed S --out DIR --durations 4 4
-    python benchmarks/campaign_jax_distributed.py DIR WORK [--json OUT.json]
+    python benchmarks/validation/gen_campaign.py --n 2 --seed S --out DIR --durations 4 4
+    python benchmarks/validation/campaign_jax_distributed.py DIR WORK [--json OUT.json]
 
 Starts a ``dask scheduler`` and one ``dask worker``; runs ``jaxdrift campaign --durability`` once as
 one process, then as two processes (``--jax-coordinator/--jax-processes/--jax-process-id``, the same

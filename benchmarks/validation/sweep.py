@@ -27,14 +27,15 @@ Scoring (from docs/measured-data.md, written for this sweep):
 
 Examples::
 
-    python benchmarks/independent/sweep.py --kind vehicle --n 20 --seed 1 --out /tmp/sw --jobs 2
-    python benchmarks/independent/sweep.py --kind attitude --n 100 --seed 20261201 \\
+    python benchmarks/validation/sweep.py --kind vehicle --n 20 --seed 1 --out /tmp/sw --jobs 2
+    python benchmarks/validation/sweep.py --kind attitude --n 100 --seed 20261201 \\
         --out docs/validation --prefix "$(git rev-parse --short HEAD)-" --jobs 1
 """
 
 from __future__ import annotations
 
 import argparse
+import importlib
 import json
 import os
 import shutil
@@ -46,7 +47,7 @@ from collections import Counter, defaultdict
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE))
+sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 
 #: nonlinear suspension causes (``gen_vehicle.design_nonlinear``) and the finding that names a
 #: model-form error without a cause; ``model_form`` counts as right for a nonlinear effect when its
@@ -191,7 +192,7 @@ def run_one(kind: str, case: dict, cache: str, sizing: dict, keep_dir: str | Non
     """Generate, diagnose and score one case; write its result JSON atomically into ``cache``."""
     import numpy as np  # noqa: F401  (workers start clean)
 
-    gen = __import__("gen_vehicle" if kind == "vehicle" else "gen_attitude")
+    gen = importlib.import_module("benchmarks.validation." + ("gen_vehicle" if kind == "vehicle" else "gen_attitude"))
     res = {"index": case["index"], "kind": kind, "stratum": case["stratum"]}
     scratch = keep_dir or tempfile.mkdtemp(prefix=f"indep-{kind}-")
     try:
@@ -462,7 +463,7 @@ def _where(kind, cs):
 
 def markdown(s: dict) -> str:
     L = [f"# Independent validation sweep: {s['kind']}", "",
-         f"{s['runs']} runs (design seed {s['seed']}, generator `benchmarks/independent/gen_{s['kind']}.py`), "
+         f"{s['runs']} runs (design seed {s['seed']}, generator `benchmarks/validation/gen_{s['kind']}.py`), "
          f"diagnosed by jaxdrift {s.get('jaxdrift_commit', '?')}; {s['errors']} failed with an error. "
          f"Reproduce: `{s['command']}`", "",
          "| measure | result | target |", "|---|---|---|",
@@ -571,7 +572,7 @@ def main(argv=None):
                     help="vehicle: diagnose with with_simulation=False (no force-driven re-simulation: "
                          "no re-simulation check of the causes and no pitch gain; faster)")
     a = ap.parse_args(argv)
-    gen = __import__("gen_vehicle" if a.kind == "vehicle" else "gen_attitude")
+    gen = importlib.import_module("benchmarks.validation." + ("gen_vehicle" if a.kind == "vehicle" else "gen_attitude"))
     nonlinear = a.kind == "vehicle" and a.design == "nonlinear"
     cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{'nonlinear-' if nonlinear else ''}{a.seed}")
     os.makedirs(cache, exist_ok=True)
@@ -608,7 +609,7 @@ def main(argv=None):
         if os.path.exists(p):
             with open(p) as fh:
                 results.append(json.load(fh))
-    cmd = (f"python benchmarks/independent/sweep.py --kind {a.kind} --n {a.n} --seed {a.seed} "
+    cmd = (f"python benchmarks/validation/sweep.py --kind {a.kind} --n {a.n} --seed {a.seed} "
            f"--out {a.out}" + (f" --prefix {a.prefix}" if a.prefix else "")
            + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "")
            + (" --design nonlinear" if nonlinear else "") + " --jobs 1")

@@ -15,9 +15,9 @@ findings that name the true cause are used (a wrong cause has no true value to c
 
 Run it on a tuning seed, never on the held-out seed of the committed sweep:
 
-    python benchmarks/independent/sweep.py --kind vehicle --n 200 --seed 31 --out /tmp/t31 \\
+    python benchmarks/validation/sweep.py --kind vehicle --n 200 --seed 31 --out /tmp/t31 \\
         --cache /tmp/t31/cache --jobs 2
-    python benchmarks/independent/calibrate_intervals.py /tmp/t31/cache
+    python benchmarks/validation/calibrate_intervals.py /tmp/t31/cache
 
 With ``--rho`` the given components are applied instead, and the script reports the coverage the
 sweep would have had (a check on another seed).
@@ -32,8 +32,8 @@ import math
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import sweep  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))  # run as a script: the repository root
+from benchmarks.validation import sweep  # noqa: E402
 
 KINDS = ("force_offset", "force_scale", "force_delay", "parameter_error", "force_noise")
 

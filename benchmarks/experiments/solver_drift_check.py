@@ -1,6 +1,6 @@
 """Undisturbed force-driven half-car at the seed's loose and tight tolerances: jaxdrift DOPRI5 vs scipy RK45.
 
-Reproduce: python benchmarks/solver_drift_check.py   (prints steps and pitch error in degrees at 10, 20, 30 s)
+Reproduce: python benchmarks/experiments/solver_drift_check.py   (prints steps and pitch error in degrees at 10, 20, 30 s)
 """
 import numpy as np, jax, jax.numpy as jnp
 jax.config.update("jax_enable_x64", True)

@@ -17,7 +17,7 @@ on a loaded machine the CPU time is the steadier measure. Results equal the defa
 
 Reproduce (a few minutes)::
 
-    python benchmarks/engine_layouts.py        # writes benchmarks/results/engine-layouts.{json,md}
+    python benchmarks/experiments/engine_layouts.py        # writes benchmarks/results/engine-layouts.{json,md}
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 
@@ -116,7 +116,7 @@ def main(argv=None):
     for k, r in res.items():
         md.append(f"| {k} | {r['wall_ns_per_path_step']:.0f} | {r['cpu_ns_per_path_step']:.0f} | "
                   f"{r['max_abs_diff_vs_default_engine']:.1e} |")
-    cmd = "python benchmarks/engine_layouts.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    cmd = "python benchmarks/experiments/engine_layouts.py " + " ".join(sys.argv[1:] if argv is None else argv)
     md += ["", f"Reproduce: `{cmd.strip()}`"]
     write_results(a.out, {"command": cmd, "machine": machine_info(), "load_average_start": load0,
                           "load_average_end": load1, "paths": a.paths, "seconds": a.seconds, "cases": res},

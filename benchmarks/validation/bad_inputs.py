@@ -4,7 +4,7 @@ Writes a run (the road-driven half-car, 4 s at 200 Hz), breaks it in 50 ways, ru
 in-process on each, and writes the table to benchmarks/results/bad-inputs.md (temporary paths
 shown as <tmp>). About a minute on 2 cores.
 
-    python benchmarks/bad_inputs.py
+    python benchmarks/validation/bad_inputs.py
 """
 import io, os, sys, json, contextlib, shutil, tempfile
 from pathlib import Path
@@ -129,9 +129,9 @@ for label, p in [("1024 Hz, t printed %.9g", tfmt("t1024.csv", 1024.0, "%.9g")),
     except Exception as e:
         ROWS.append(f"| {label} | refused | {e} |")
     print(ROWS[-1])
-out = Path(__file__).resolve().parent / "results" / "bad-inputs.md"
+out = Path(__file__).resolve().parents[1] / "results" / "bad-inputs.md"
 with open(out, "w") as fh:
-    fh.write("# Bad and unusual inputs (python benchmarks/bad_inputs.py)\n\n| case | exit | first message |\n|---|---|---|\n")
+    fh.write("# Bad and unusual inputs (python benchmarks/validation/bad_inputs.py)\n\n| case | exit | first message |\n|---|---|---|\n")
     fh.write("\n".join(ROWS) + "\n")
 shutil.rmtree(D, ignore_errors=True)
 print("wrote", out)

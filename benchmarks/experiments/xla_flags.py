@@ -11,7 +11,7 @@ a temporary file), so a flag that changes the results shows it.
 
 Reproduce::
 
-    python benchmarks/xla_flags.py --variants "baseline=;vw512=--xla_cpu_prefer_vector_width=512"
+    python benchmarks/experiments/xla_flags.py --variants "baseline=;vw512=--xla_cpu_prefer_vector_width=512"
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ import sys
 import time
 from pathlib import Path
 
-HERE = Path(__file__).resolve().parent
+HERE = Path(__file__).resolve().parents[1]  # benchmarks/: _common, _setup, results/
 sys.path.insert(0, str(HERE))
 
 

@@ -1,8 +1,8 @@
-"""Score a campaign against the truth of ``benchmarks/independent/gen_campaign.py``.
+"""Score a campaign against the truth of ``benchmarks/validation/gen_campaign.py``.
 
-    python benchmarks/independent/gen_campaign.py --n 40 --seed S --out DIR
+    python benchmarks/validation/gen_campaign.py --n 40 --seed S --out DIR
     jaxdrift campaign --manifest DIR/campaign.toml --out OUT --workers 2
-    python benchmarks/campaign_validation.py DIR OUT [--json benchmarks/results/campaign_validation.json]
+    python benchmarks/validation/campaign_validation.py DIR OUT [--json benchmarks/results/campaign_validation.json]
 
 Per shared parameter: the joint estimate and interval, whether it holds the truth, the single-run
 intervals that name it (their median width) and the narrowing. Per run: whether its logger's sensor

@@ -6,7 +6,7 @@
   exact solution is piecewise cubic: the error of fixed steps aligned with the samples, and of
   adaptive steps at rtol 1e-6, 1e-8 and 1e-10 (the kinks make the adaptive error exceed rtol).
 
-    python benchmarks/engine_checks.py     # ~20 s; writes benchmarks/results/engine-checks.json
+    python benchmarks/validation/engine_checks.py     # ~20 s; writes benchmarks/results/engine-checks.json
 """
 
 from __future__ import annotations
@@ -20,8 +20,8 @@ import sys
 import numpy as np
 import scipy.linalg
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _common import RESULTS, machine_info  # noqa: E402
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))  # run as a script: the repository root
+from benchmarks._common import RESULTS, machine_info  # noqa: E402
 
 A_LIN = np.array([[0.0, 1.0, 0.0], [-4.0, -0.3, 1.0], [0.0, 0.0, -1.5]])
 

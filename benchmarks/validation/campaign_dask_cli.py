@@ -1,8 +1,8 @@
 """``jaxdrift campaign`` against a separately started ``dask scheduler`` and two ``dask worker``
 processes, one of them killed (SIGKILL) midway, compared with the same campaign on a LocalCluster.
 
-    python benchmarks/independent/gen_campaign.py --n 6 --seed S --out DIR
-    python benchmarks/campaign_dask_cli.py DIR WORK [--json benchmarks/results/campaign_dask_cli.json]
+    python benchmarks/validation/gen_campaign.py --n 6 --seed S --out DIR
+    python benchmarks/validation/campaign_dask_cli.py DIR WORK [--json benchmarks/results/campaign_dask_cli.json]
 
 Checks: the campaign finishes on the one worker left; every run whose result was in the cache when
 the worker died is still there, unchanged; ``campaign.json`` equals the LocalCluster one apart from

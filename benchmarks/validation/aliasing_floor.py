@@ -7,7 +7,7 @@ sampled 4x faster, and that faster run decimated back to the drawn rate with an 
 filter (scipy ``decimate``, FIR, zero phase). If the floor vanishes after decimation it is aliasing
 of force content above the Nyquist frequency, not the pipeline.
 
-    python benchmarks/independent/aliasing_floor.py --seed 31 --index 11   # ~15 s
+    python benchmarks/validation/aliasing_floor.py --seed 31 --index 11   # ~15 s
 
 writes ``benchmarks/results/aliasing-floor.json`` (``--out``; docs/diagnosis.md quotes it).
 """
@@ -24,12 +24,11 @@ import tempfile
 import numpy as np
 import scipy.signal
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))  # run as a script: the repository root
 
-import gen_vehicle as gv  # noqa: E402
-import sweep  # noqa: E402
+from benchmarks._common import RESULTS, machine_info  # noqa: E402
+from benchmarks.validation import gen_vehicle as gv, sweep  # noqa: E402
 
-RESULTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "results")
 
 
 def lowband_sigma(full: dict, decim: int | None = None) -> tuple[float, float]:
@@ -54,7 +53,7 @@ def main(argv=None):
     ap.add_argument("--seed", type=int, default=31, help="design seed (default 31)")
     ap.add_argument("--index", type=int, default=11, help="case index in the design (default 11)")
     ap.add_argument("--n", type=int, default=80, help="design size the case comes from (default 80)")
-    ap.add_argument("--out", default=os.path.join(RESULTS, "aliasing-floor.json"), help="JSON result file")
+    ap.add_argument("--out", default=str(RESULTS / "aliasing-floor.json"), help="JSON result file")
     a = ap.parse_args(argv)
     case = next(c for c in gv.design(a.n, a.seed) if c["index"] == a.index)
     full = dict(gv.make_case(case, **sweep.SIZING["vehicle"]), effects=[], motion_noise={}, precision=9)
@@ -73,9 +72,6 @@ def main(argv=None):
     s, fs = lowband_sigma(fast, decim=4)
     res["decimated"] = {"fs_hz": fs, "lowband_sigma_N": s}
     print(f"4x faster, anti-aliased and decimated back ({fs:.0f} Hz): {s:.4g} N")
-    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from _common import machine_info
-
     res["machine"] = machine_info()
     with open(a.out, "w") as fh:
         json.dump(res, fh, indent=2)
