@@ -1,5 +1,10 @@
 """XLA's CPU fast-math flag on the engine: speed and accuracy, measured in two fresh processes.
 
+Found (``benchmarks/results/fast-math.json``, loaded machine): the engine went from 194 to 182 CPU ns
+per path-step (within this machine's noise), the fast mode got slower (170 -> 187) and its per-path
+difference grew to 2.3e-3 of the ensemble spread (reassociation undoes the Kahan compensation).
+Not shipped.
+
 ``XLA_FLAGS=--xla_cpu_enable_fast_math=true`` lets LLVM reassociate and contract floating-point
 operations and assume no NaN/inf. This script runs the half-car study of ``benchmarks/_setup.py``
 (``--paths`` paths x ``--seconds`` s, 1 ms steps, one JAX device) with jaxdrift's engine (float64)

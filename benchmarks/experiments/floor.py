@@ -1,5 +1,11 @@
 """How fast can any integrator be on the half-car study? The vector field and the noise set a floor.
 
+Found (``benchmarks/results/floor.json``, idle AMD EPYC, before the polynomial sin/cos and the
+paths-last loop): float64 jaxdrift 386 ns per path-step against diffrax 902, a floor of 343 ns
+(noise + six model evaluations), so at most 2.63x over diffrax with that model code; float32
+(``floor-float32.json``) at most 2.89x. ``benchmarks/limit.py`` later showed how far below that
+floor a compiled loop goes.
+
 The throughput targets are ratios of path-steps per second against diffrax on the same
 vector field with the same noisy inputs. Two costs are the same for every contender: drawing the
 noise, and the six evaluations of the model's vector field per Dormand-Prince step (the seventh is

@@ -1,5 +1,10 @@
 """Undisturbed force-driven half-car at the seed's loose and tight tolerances: jaxdrift DOPRI5 vs scipy RK45.
 
+Found (printed only, no result file; docs/paper-study.md "Solvers" has the study's own comparison):
+with undisturbed forces the pitch error at the seed's loose tolerance (rtol 1e-4) grows to tens of
+degrees by 30 s with scipy's RK45 as with jaxdrift's DOPRI5 (the same controller), while at tight
+tolerance both stay far below a degree: the loose-tolerance drift is integration error.
+
 Reproduce: python benchmarks/experiments/solver_drift_check.py   (prints steps and pitch error in degrees at 10, 20, 30 s)
 """
 import numpy as np, jax, jax.numpy as jnp

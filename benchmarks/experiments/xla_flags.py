@@ -1,6 +1,12 @@
 """XLA CPU flags on the half-car study: jaxdrift (float64, fast mode) and diffrax, fresh processes.
 
-Hypothesis 2. Each variant is a set of ``XLA_FLAGS`` (added to the
+Found (not committed as JSON; transcribed in ``benchmarks/results/performance-recorded.json``,
+group ``xla_flags``, load 9.9 -> 7.0): ``--xla_cpu_prefer_vector_width=512`` took jaxdrift float64
+from 94 to 66 CPU ns per path-step and the fast mode from 59 to 42 with identical results (shipped
+through ``use_all_cores``); the legacy emitters were slower (135, 88); no eigen threads changed
+nothing (91, 57).
+
+Each variant is a set of ``XLA_FLAGS`` (added to the
 environment of a fresh Python process, since XLA reads them once); the variants run alternately,
 ``--rounds`` times each, so that a change of the machine's load hits them alike. Every process
 times, after compiling, ``--reps`` calls of each case (best kept) at ``--paths`` paths per call over
