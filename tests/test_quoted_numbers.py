@@ -6,6 +6,8 @@ after regenerating a result: ``python benchmarks/readme_table.py``.
 
 from __future__ import annotations
 
+import json
+import re
 from pathlib import Path
 
 import pytest
@@ -25,7 +27,7 @@ def test_quoted_numbers_match_their_files(path):
 
 def test_the_docs_quote_numbers():
     n = sum(len(_quoted.quotes(p.read_text())) for p in DOCS)
-    assert n >= 700, n
+    assert n >= 2000, n
 
 
 def test_a_hand_edited_number_fails():
@@ -82,3 +84,19 @@ def test_key_selections_and_aggregates():
         _quoted.lookup(rows, "v.0|mean")
     with pytest.raises(_quoted.QuoteError, match="no 'c'"):
         _quoted.lookup(rows, "ns.[(a,c)].w|ratio")
+
+
+def test_transcribed_numbers_say_where_they_come_from():
+    """A ``*-recorded.json`` holds numbers transcribed from runs that are not rerun (earlier code,
+    an idle machine, long sweeps): it says so, names the machine, and every number names the
+    commit that first recorded it."""
+    files = sorted((ROOT / "benchmarks" / "results").glob("*-recorded.json"))
+    assert files
+    for f in files:
+        d = json.loads(f.read_text())
+        assert d.get("transcribed") is True and d.get("machine") and d.get("what"), f.name
+        for name, group in d["values"].items():
+            numbers = group["numbers"].values() if "numbers" in group else [group]
+            for n in numbers:
+                assert isinstance(n["value"], (int, float, list, dict)), (f.name, name)
+                assert re.match(r"[0-9a-f]{7}\b", n["recorded_in"]), (f.name, name, n["recorded_in"])
