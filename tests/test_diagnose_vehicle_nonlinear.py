@@ -34,7 +34,7 @@ def _diagnose(tmp_path, case):
 
 
 def test_rear_damper_asymmetry_is_named_with_its_ratio(tmp_path):
-    """The issue's car: rear rebound 1.5x compression, spring travel measured, 2 N force noise: the
+    """A car with rear rebound 1.5x compression, spring travel measured, 2 N force noise: the
     first finding is the rear damper's asymmetry, its estimate within 10 % of the true ratio, its
     correction lowers the residual it is read from, and the extended model carries it."""
     rep = _diagnose(tmp_path, _case([{"cause": "damper_asymmetry", "parameter": "d4", "value": 1.5}], noise=2.0))

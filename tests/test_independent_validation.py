@@ -303,7 +303,7 @@ def test_scorer_rules():
     assert s["right"] and not s["coverage"][0]["covered"]  # z = -0.02 lies above -0.025
 
 
-# ----------------------------------------------------------------------------- the issue's targets
+# ----------------------------------------------------------------------------- the targets
 @pytest.mark.slow
 @pytest.mark.parametrize("kind,n", [("vehicle", 14), ("attitude", 10)])
 def test_small_sweep_meets_issue_targets(tmp_path, kind, n):
