@@ -223,3 +223,70 @@ def test_seed_table_points_at_real_code():
         if name not in defined:
             missing.append(f"{path}:{name}")
     assert not missing, f"docs/architecture.md names code that does not exist: {missing}"
+
+
+# ----------------------------------------------------------------------------- no shared mutable state
+#: Functions allowed to set attributes of an object they did not make, and why. Everything else in
+#: jaxdrift/ that sets ``x.attr`` sets it on ``self`` (or ``cls``) or on an object it created in the
+#: same function (``new = copy.copy(self); new.band = ...``).
+MUTATION_ALLOWED = {
+    # the attitude diagnosis fills its own working record, AttitudeState, step by step in a fixed
+    # order (docs/architecture.md, "Pure steps"): the one remaining state object
+    "diagnosis.attitude._pipeline": "AttitudeState, filled by the pipeline's steps",
+    "diagnosis.attitude._array": "AttitudeState, filled by the pipeline's steps",
+    "diagnosis.attitude._realworld": "AttitudeState, filled by the pipeline's steps",
+    # process-wide hooks, set once by the command line or the package itself
+    "cli._common": "warnings.showwarning and the interrupt handler: the command line's process hooks",
+    "campaign": "the package module's class (a callable package)",
+}
+
+
+def mutations(root: Path = ROOT) -> list[str]:
+    """``module:line function: target`` for every assignment to an attribute of an object the
+    function did not create (a parameter, an alias of another object, ``self.x.y``), and every
+    ``setattr``/``object.__setattr__`` outside ``__post_init__``."""
+    out = []
+    for path in sorted(root.rglob("*.py")):
+        mod = ".".join(path.relative_to(root).with_suffix("").parts)
+        mod = mod[:-len(".__init__")] if mod.endswith(".__init__") else mod
+        tree = ast.parse(path.read_text())
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            params = {a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs}
+            made = {t.id for node in ast.walk(fn) if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call)
+                    for t in node.targets if isinstance(t, ast.Name)} - params
+            for node in ast.walk(fn):
+                if isinstance(node, ast.Call) and isinstance(node.func, (ast.Name, ast.Attribute)) \
+                        and ast.unparse(node.func) in ("setattr", "object.__setattr__") and fn.name != "__post_init__":
+                    out.append(f"{mod}:{node.lineno} {fn.name}: {ast.unparse(node)[:60]}")
+                targets = node.targets if isinstance(node, ast.Assign) else \
+                    [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
+                for t in targets:
+                    for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                        if not isinstance(tt, ast.Attribute):
+                            continue
+                        base = tt.value
+                        if isinstance(base, ast.Name) and (base.id in ("self", "cls") or base.id in made):
+                            continue
+                        out.append(f"{mod}:{tt.lineno} {fn.name}: {ast.unparse(tt)}")
+    return out
+
+
+def test_no_step_mutates_another_object():
+    found = [m for m in mutations() if m.split(":")[0] not in MUTATION_ALLOWED]
+    assert not found, "a function sets attributes of an object it did not create:\n" + "\n".join(found)
+
+
+def test_mutation_checker_can_fail(tmp_path):
+    pkg = tmp_path / "jaxdrift" / "diagnosis"
+    pkg.mkdir(parents=True)
+    (pkg / "_x.py").write_text(
+        "import copy\n"
+        "def limit(prob):\n    prob.pipe.band = {}\n"
+        "def alias(self):\n    pipe = self.pipe\n    pipe.band = {}\n"
+        "def fine(self):\n    new = copy.copy(self)\n    new.band = {}\n    self.x = 1\n    return new\n"
+        "def hidden(o):\n    setattr(o, 'band', 1)\n")
+    found = "\n".join(mutations(tmp_path / "jaxdrift"))
+    assert "limit: prob.pipe.band" in found and "alias: pipe.band" in found and "hidden: setattr" in found
+    assert "fine" not in found

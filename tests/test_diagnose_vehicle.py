@@ -100,7 +100,7 @@ def test_residuals_vanish_on_independent_true_run(scipy_clean_run):
     the true motion: every residual is below 1e-4 of the signal it balances."""
     cols, true = scipy_clean_run
     run = _run(cols)
-    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in ("f1", "f2")}
+    from jaxdrift.io._corrections import NO_CORRECTION as zero
     for chans in [("beta", "z3", "s1", "s2"), ("beta",), ("z3", "s1", "s2")]:
         sub = _run({"t": cols["t"], "f1": cols["f1"], "f2": cols["f2"], **{c: cols[c] for c in chans}})
         pipe = ResidualPipeline(sub)
@@ -325,7 +325,7 @@ def test_forces_only_run_checks_static_load_and_noise():
 def test_sensor_noise_on_the_measured_motion_is_filtered_out():
     """White sensor noise on pitch, heave and spring travel (1e-6: a CSV written with six
     decimals) reaches the residuals through I beta'', m3 z3'' and d s': without the band limit
-    of ``_Problem.limit_bands`` it swamps the enforced moment and the diagnosis names a wrong
+    of ``_problem.choose_bands`` it swamps the enforced moment and the diagnosis names a wrong
     inertia. With it the offset is found, its interval holds the truth, and so does the noise's."""
     effects = [{"cause": "force_offset", "channel": "f1", "value": 60.0},
                {"cause": "force_noise", "value": 20.0}]

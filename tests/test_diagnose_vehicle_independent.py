@@ -85,7 +85,7 @@ def test_white_motion_noise_is_measured_within_1_5x(clean_cols):
 def _moment_rms(cols):
     run = _run(cols, 9)
     pipe = ResidualPipeline(run)
-    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in ("f1", "f2")}
+    from jaxdrift.io._corrections import NO_CORRECTION as zero
     r = pipe.residuals(VAN, zero).channels["moment"]
     return float(np.sqrt(np.mean(r[:-pipe.trim] ** 2)))
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from jaxdrift.diagnosis.vehicle._causes import METHOD_REL, Cause, _finding_for, method_half
+from jaxdrift.diagnosis.vehicle._causes import FORCE_NOISE, Cause, _finding_for, method_half
 from jaxdrift.diagnosis._intervals import joint_intervals
 
 
@@ -44,7 +44,7 @@ def test_upper_bound_keeps_zero_and_alternatives_widen():
 
 
 def test_noise_method_component_is_relative():
-    assert METHOD_REL["force_noise"] > 0
+    assert FORCE_NOISE.method_rel > 0
     assert method_half("force_noise", 2.0) == pytest.approx(2 * method_half("force_noise", 1.0))
 
 
@@ -57,18 +57,14 @@ def test_joint_coverage_monte_carlo():
     truth = np.array([5.0, 1e-3, 0.05])
     causes = [Cause("force_offset", "f1"), Cause("force_delay", "f1"), Cause("parameter_error", "I")]
     n, joint, marginal = 4000, 0, 0
-    old = dict(METHOD_REL)
-    METHOD_REL.update({c.kind: 0.0 for c in causes})  # the statistical part alone
-    try:
-        for _ in range(n):
-            est = truth + se * rng.standard_normal(3)
-            fs = [_finding_for(c, e, s) for c, e, s in zip(causes, est, se)]
-            tv = [c.to_estimate(t) for c, t in zip(causes, truth)]
-            marginal += all(f["interval"][0] <= t <= f["interval"][1] for f, t in zip(fs, tv))
-            joint_intervals(fs)
-            joint += all(f["interval"][0] <= t <= f["interval"][1] for f, t in zip(fs, tv))
-    finally:
-        METHOD_REL.update(old)
+    assert all(c.kind.method_rel == 0.0 for c in causes)  # the statistical part alone
+    for _ in range(n):
+        est = truth + se * rng.standard_normal(3)
+        fs = [_finding_for(c, e, s) for c, e, s in zip(causes, est, se)]
+        tv = [c.to_estimate(t) for c, t in zip(causes, truth)]
+        marginal += all(f["interval"][0] <= t <= f["interval"][1] for f, t in zip(fs, tv))
+        joint_intervals(fs)
+        joint += all(f["interval"][0] <= t <= f["interval"][1] for f, t in zip(fs, tv))
     band = 3 * math.sqrt(0.95 * 0.05 / n)
     assert abs(joint / n - 0.95) < band, joint / n
     assert abs(marginal / n - 0.95 ** 3) < 3 * math.sqrt(0.857 * 0.143 / n), marginal / n

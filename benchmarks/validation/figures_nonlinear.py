@@ -73,7 +73,7 @@ def main(argv=None):
             ax[1].set(xlabel="f1 [N]", ylabel="samples", title="an atom of samples at the floor")
         else:
             pipe = ResidualPipeline(run)
-            zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+            from jaxdrift.io._corrections import NO_CORRECTION as zero
             r = pipe.residuals(model, zero).channels["spring2"]
             st = model_states(pipe, model, zero)
             n = len(r) - pipe.trim

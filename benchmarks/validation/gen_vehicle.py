@@ -78,6 +78,8 @@ NONLINEAR = [("damper_asymmetry", "d3"), ("damper_asymmetry", "d4"), ("progressi
              ("tyre_lift_off", "f1"), ("tyre_lift_off", "f2")]
 #: the sensor effects a nonlinear effect is paired with
 SENSOR = [(c, ch) for c in ("force_offset", "force_scale", "force_delay") for ch in ("f1", "f2")]
+#: a force transducer's gain drifting over the run (``design_gain_drift``), alone and with an offset
+GAIN_DRIFT = [("force_gain_drift", "f1"), ("force_gain_drift", "f2")]
 
 
 # ----------------------------------------------------------------------------- road
@@ -299,9 +301,11 @@ def _loguniform(rng, lo, hi):
     return float(math.exp(rng.uniform(math.log(lo), math.log(hi))))
 
 
-def draw_effect(rng, cause: str, target: str | None, p: dict) -> dict:
+def draw_effect(rng, cause: str, target: str | None, p: dict, duration: float | None = None) -> dict:
     """One hidden effect of random size, from barely detectable to large (log-uniform)."""
     sign = 1.0 if rng.random() < 0.5 else -1.0
+    if cause == "force_gain_drift":  # the scale changes by 0.2-5 % over the run, linearly
+        return {"cause": cause, "channel": target, "value": sign * _loguniform(rng, 2e-3, 5e-2) / duration}
     if cause == "force_offset":
         load = p["m1"] * p["g"] + p["m3"] * p["g"] * p["a"] / (p["a"] + p["b"])
         if target == "f2":
@@ -367,6 +371,26 @@ def design_nonlinear(n: int, seed: int, free_share: float = 0.4) -> list[dict]:
     return cases
 
 
+def design_gain_drift(n: int, seed: int, free_share: float = 0.2) -> list[dict]:
+    """``n`` cases for a force transducer's gain drift: ``free_share`` effect-free (half without,
+    half with force noise), the rest half the drift alone (``GAIN_DRIFT``), half the drift paired
+    with an offset on either channel; shuffled."""
+    n_free = round(free_share * n)
+    n_single = round(0.5 * (n - n_free))
+    n_pair = n - n_free - n_single
+    plan = [("clean", ())] * (n_free // 2) + [("noise", ())] * (n_free - n_free // 2)
+    plan += [("single", (GAIN_DRIFT[i % 2],)) for i in range(n_single)]
+    plan += [("pair", (GAIN_DRIFT[i % 2], ("force_offset", ("f1", "f2")[(i // 2) % 2]))) for i in range(n_pair)]
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(plan))
+    cases = []
+    for i, j in enumerate(order):
+        kind, what = plan[j]
+        cases.append({"index": i, "stratum": kind, "what": [list(w) for w in what],
+                      "seed": int(rng.integers(2**31)), "design": "gain_drift"})
+    return cases
+
+
 def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500, 600, 1000, 1200, 2000),
               max_samples: int | None = None):
     """Draw everything else of a case (vehicle, road, speed, rate, channels, sizes, noise);
@@ -387,9 +411,9 @@ def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500,
         chan = str(rng.choice(sorted(k for k in CHANNEL_SETS if k != "forces")))
     effects = []
     if case["stratum"] == "single":
-        effects.append(draw_effect(rng, *case["what"][0], nominal))
-    elif case["stratum"] == "pair" and case.get("design") == "nonlinear":
-        effects += [draw_effect(rng, *w, nominal) for w in case["what"]]
+        effects.append(draw_effect(rng, *case["what"][0], nominal, duration=dur))
+    elif case["stratum"] == "pair" and case.get("design") in ("nonlinear", "gain_drift"):
+        effects += [draw_effect(rng, *w, nominal, duration=dur) for w in case["what"]]
     elif case["stratum"] == "pair":
         c1, c2 = case["what"]
         if c1 == c2 and c1 != "parameter_error":
@@ -492,6 +516,8 @@ def generate(case: dict) -> tuple[dict, dict]:
     for e in case["effects"]:
         if e["cause"] == "force_scale":
             meas[e["channel"]] = meas[e["channel"]] * e["value"]
+        if e["cause"] == "force_gain_drift":  # 1 + drift (t - t_mid)
+            meas[e["channel"]] = meas[e["channel"]] * (1.0 + e["value"] * (tau - 0.5 * tau[-1]))
     for e in case["effects"]:
         if e["cause"] == "force_offset":
             meas[e["channel"]] = meas[e["channel"]] + e["value"]

@@ -54,7 +54,7 @@ sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 #: axle is the effect's (front: k3/d3/f1, rear: k4/d4/f2)
 NONLINEAR = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
 FORM = ("model_form",) + NONLINEAR
-SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "parameter_error") + FORM,
+SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "force_gain_drift", "parameter_error") + FORM,
               "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")}
 NOISE = {"vehicle": ("force_noise",), "attitude": ("gyro_noise", "accel_noise")}
 #: sizing of the committed sweep (fits ~35 min of one core for 200 vehicle + 100 attitude runs)
@@ -67,6 +67,7 @@ SIZING = {"vehicle": {"durations": (10.0, 40.0), "rates": (200, 250, 300, 500, 6
 #: the generators' log-uniform size ranges of each systematic effect (``size_u`` maps an effect to
 #: its place in its range: 0 barely detectable ... 1 large; ``test_size_ranges`` keeps them in step)
 SIZE_RANGES = {"force_offset": (1e-3, 1e-1), "force_scale": (1e-3, 1e-1), "force_delay": (1e-4, 1e-2),
+               "force_gain_drift": (2e-3, 5e-2),
                "parameter_error": (5e-3, 0.2), "gyro_bias": (3.0, 300.0), "gyro_scale": (1e-3, 5e-2),
                "gyro_bias_drift": (1e-5, 1e-3), "sensor_position": (0.005, 0.1), "nonrigid": (0.005, 0.3)}
 
@@ -85,6 +86,8 @@ def size_u(e: dict, case: dict) -> float:
         x = abs(v) / (m * p["g"] + p["m3"] * p["g"] * share / (p["a"] + p["b"]))
     elif c in ("force_scale", "parameter_error", "gyro_scale"):
         x = abs(v - 1.0)
+    elif c == "force_gain_drift":  # the scale's change over the run
+        x = abs(v) * case["duration"]
     elif c == "gyro_bias":
         N = next((n["value"] for n in case["effects"] if n["cause"] == "gyro_noise"), math.radians(0.05) / 60)
         x = abs(v) / (N / math.sqrt(case["duration"]))
@@ -560,10 +563,12 @@ def main(argv=None):
     ap.add_argument("--cache", help="folder of per-run results (default OUT/cache/<kind>-<seed>)")
     ap.add_argument("--prefix", default="", help="prefix of the summary files; the committed ones are named by the commit that diagnosed them, "
                     "e.g. '20e4450-'")
-    ap.add_argument("--design", choices=("standard", "nonlinear"), default="standard",
-                    help="vehicle: the stratified design of today's causes, or the nonlinear suspension "
+    ap.add_argument("--design", choices=("standard", "nonlinear", "gain_drift"), default="standard",
+                    help="vehicle: the stratified design of today's causes, the nonlinear suspension "
                          "design (gen_vehicle.design_nonlinear: effect-free runs, nonlinear effects alone "
-                         "and paired with a sensor effect)")
+                         "and paired with a sensor effect) or the gain-drift design "
+                         "(gen_vehicle.design_gain_drift: effect-free runs, a drifting force gain alone "
+                         "and with an offset)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--chunk", default="0/1", help="i/k: only the cases with index = i mod k")
     ap.add_argument("--report-only", action="store_true", help="summarise the cache, run nothing")
@@ -574,11 +579,13 @@ def main(argv=None):
     a = ap.parse_args(argv)
     gen = importlib.import_module("benchmarks.validation." + ("gen_vehicle" if a.kind == "vehicle" else "gen_attitude"))
     nonlinear = a.kind == "vehicle" and a.design == "nonlinear"
-    cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{'nonlinear-' if nonlinear else ''}{a.seed}")
+    design = a.design if a.kind == "vehicle" else "standard"
+    cache = a.cache or os.path.join(a.out, "cache", f"{a.kind}-{'' if design == 'standard' else design + '-'}{a.seed}")
     os.makedirs(cache, exist_ok=True)
     os.makedirs(a.out, exist_ok=True)
     sizing = SIZING[a.kind]
-    cases = gen.design_nonlinear(a.n, a.seed) if nonlinear else gen.design(a.n, a.seed)
+    cases = {"standard": gen.design, "nonlinear": getattr(gen, "design_nonlinear", None),
+             "gain_drift": getattr(gen, "design_gain_drift", None)}[design](a.n, a.seed)
     i, k = (int(x) for x in a.chunk.split("/"))
     todo = [c for c in cases if c["index"] % k == i
             and not os.path.exists(os.path.join(cache, f"{c['index']:04d}.json"))]
@@ -612,7 +619,7 @@ def main(argv=None):
     cmd = (f"python benchmarks/validation/sweep.py --kind {a.kind} --n {a.n} --seed {a.seed} "
            f"--out {a.out}" + (f" --prefix {a.prefix}" if a.prefix else "")
            + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "")
-           + (" --design nonlinear" if nonlinear else "") + " --jobs 1")
+           + (f" --design {design}" if design != "standard" else "") + " --jobs 1")
     summ = summarise(a.kind, results, {"seed": a.seed, "n_design": a.n, "command": cmd,
                                        "sizing": sizing, "jaxdrift_commit": _commit()})
     if nonlinear:

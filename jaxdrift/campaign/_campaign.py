@@ -83,7 +83,7 @@ def _groups(specs, ok):
 
 def _joint(client, specs, results, names, model, model_given, progress, log):
     """The joint fit over the runs that were diagnosed; its result as plain JSON-able data."""
-    from ..diagnosis.vehicle._causes import Cause
+    from ..diagnosis.vehicle._causes import PARAMETER_ERROR, _candidates
     from ._joint import JointFit, _merge, consistency, sensor_causes_of
 
     ok = [i for i, r in enumerate(results) if r["status"] == "ok"]
@@ -91,7 +91,7 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
         return None
     lids, groups = _groups(specs, ok)
     start = [_merge([sensor_causes_of(results[i]["report"]) for i in g]) for g in groups]
-    cands = [Cause("parameter_error", k) for k in MODEL_KEYS if k != "g"]
+    cands = _candidates(None, (PARAMETER_ERROR,))
     specs_g = [[specs[i] for i in g] for g in groups]
     fit = JointFit(client, specs_g, model, model_given, cands, start, progress=progress, log=log)
     shared, theta, _ = fit.select()
@@ -128,17 +128,17 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
 
 def _findings(joint: dict, results) -> list[dict]:
     """The joint findings from the fit (estimate, covariance, consistency)."""
-    from ..diagnosis.vehicle._causes import Cause
+    from ..diagnosis.vehicle._causes import PARAMETER_ERROR, Cause
     from ._joint import joint_findings
 
     ok = [r for r in results if r["status"] == "ok"]
     named: dict = {}
     for r in ok:
         for f in r["report"].get("findings", []):
-            if f.get("cause") == "parameter_error":
+            if f.get("cause") == PARAMETER_ERROR.name:
                 named[f["parameter"]] = named.get(f["parameter"], 0) + 1
     cov = joint["covariance"]
-    shared = [Cause("parameter_error", p) for p in cov["parameters"]]
+    shared = [Cause(PARAMETER_ERROR, p) for p in cov["parameters"]]
     return joint_findings(shared, np.asarray(cov["theta"], float), np.asarray(cov["theta_covariance"], float).reshape(
         len(shared), len(shared)), len(ok), named, joint["consistency"]["parameters"])
 

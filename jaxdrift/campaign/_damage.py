@@ -17,6 +17,7 @@ import os
 
 import numpy as np
 
+from ..diagnosis.vehicle._causes import FORCE_NOISE
 from ..durability._analysis import FORCES, QUANTILES
 from ._manifest import cache_key
 
@@ -43,10 +44,8 @@ def param_draws(joint: dict, model: dict, n: int, seed: int) -> list[dict]:
 
 
 def _noise_of(report: dict) -> float:
-    for f in report.get("findings", []):
-        if f.get("cause") == "force_noise" and f.get("estimate") is not None:
-            return float(f["estimate"])
-    return 0.0
+    level = FORCE_NOISE.level_in(report.get("findings"))
+    return 0.0 if level is None else level
 
 
 def _distributed_jax() -> bool:
@@ -161,7 +160,7 @@ def _combine(specs, names, ok, outs, paths, n_draws, basquin_k, on_client) -> di
         "damage_ratio_to_stabilised": ({v: float(d.sum() / total[ref].sum()) for v, d in total.items() if v != ref}
                                        if ref and total[ref].sum() > 0 else {}),
         "quantile_levels": list(QUANTILES),
-        "force_noise": {"paths": paths, "computed_in": "campaign processes (jax.distributed)" if on_client
+        FORCE_NOISE.name: {"paths": paths, "computed_in": "campaign processes (jax.distributed)" if on_client
                         else "dask workers (one run per task)",
                         "damage_quantiles": {v: [_q(d[:, j]) for j in range(2)] for v, d in mc_tot.items()}},
         "joint_parameters": {"draws": n_draws, "variant": "extended",
@@ -169,7 +168,7 @@ def _combine(specs, names, ok, outs, paths, n_draws, basquin_k, on_client) -> di
     }
     if ref in mc_tot:
         r = mc_tot[ref].sum(axis=1)
-        out["force_noise"]["damage_ratio_quantiles"] = {v: _q(d.sum(axis=1) / r) for v, d in mc_tot.items() if v != ref}
+        out[FORCE_NOISE.name]["damage_ratio_quantiles"] = {v: _q(d.sum(axis=1) / r) for v, d in mc_tot.items() if v != ref}
     if par_ok and ref and total[ref].sum() > 0:
         out["joint_parameters"]["extended_ratio_quantiles"] = _q(par_tot.sum(axis=1) / total[ref].sum())
     return out

@@ -22,8 +22,8 @@ import math
 import numpy as np
 import scipy.stats
 
-from ..diagnosis.vehicle._causes import (ALPHA, FORCE_CHANNELS, Cause, _apply, _finding_for, _practical,
-                                         _theta_bounds)
+from ..diagnosis.vehicle._causes import (ALPHA, FORCE_CHANNELS, FORCE_OFFSET, PARAMETER_ERROR, SENSOR_KINDS,
+                                         Cause, _apply, _finding_for, _practical, _theta_bounds, kind_named)
 from ._executor import map_tasks
 from ._tasks import blocks_task, reselect_task
 
@@ -31,21 +31,19 @@ __all__ = ["JointFit", "sensor_causes_of", "CONSISTENCY_LEVEL"]
 
 #: a parameter whose single-run estimates scatter beyond their intervals at this level is reported
 CONSISTENCY_LEVEL = 0.01
-SENSOR_KINDS = ("force_offset", "force_scale", "force_delay")
 
 
 def sensor_causes_of(report: dict) -> tuple[list[Cause], list[float]]:
     """The sensor effects a single-run report names, as causes and starting theta."""
     causes, theta = [], []
     for f in report.get("findings", []):
-        if f.get("cause") not in SENSOR_KINDS or "channel" not in f:
+        if f.get("cause") not in {k.name for k in SENSOR_KINDS} or "channel" not in f:
             continue
-        c = Cause(f["cause"], f["channel"])
+        c = Cause(kind_named(f["cause"]), f["channel"])
         if c in causes:
             continue
-        est = float(f["estimate"])
         causes.append(c)
-        theta.append(1.0 / est - 1.0 if c.kind == "force_scale" else est)
+        theta.append(c.kind.to_theta(float(f["estimate"])))
     return causes, theta
 
 
@@ -56,13 +54,13 @@ def _merge(cause_lists) -> tuple[list[Cause], list[float]]:
     for causes, theta in cause_lists:
         for c, t in zip(causes, theta):
             acc.setdefault(c, []).append(float(t))
-    both = Cause("force_offset", "both")
-    if both in acc and any(c.kind == "force_offset" and c != both for c in acc):
+    both = Cause(FORCE_OFFSET, "both")
+    if both in acc and any(c.kind is FORCE_OFFSET and c != both for c in acc):
         tb = float(np.mean(acc.pop(both)))
         for ch in FORCE_CHANNELS:
-            c = Cause("force_offset", ch)
+            c = Cause(FORCE_OFFSET, ch)
             acc[c] = [t + tb for t in acc.get(c, [0.0])]
-    causes = sorted(acc, key=lambda c: (c.kind, c.target))
+    causes = sorted(acc, key=lambda c: (c.kind.name, c.target))
     return causes, [float(np.mean(acc[c])) for c in causes]
 
 
@@ -242,7 +240,7 @@ def check_consistency(entry: dict) -> dict:
     run's variance is its sandwich variance plus the single-run resolution floor in quadrature (its
     single-run interval), the chi-square on runs - 1 degrees of freedom, and the runs outside their
     95 % interval after Bonferroni over the runs."""
-    c = Cause("parameter_error", entry["parameter"])
+    c = Cause(PARAMETER_ERROR, entry["parameter"])
     floor_se = _practical(c, None) / 1.96
     th = entry["joint_estimate"] - 1.0
     ests = [(r["run"], r["estimate"] - 1.0, r["se"] ** 2 + floor_se ** 2) for r in entry["per_run"]]

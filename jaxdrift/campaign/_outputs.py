@@ -8,6 +8,7 @@ import os
 
 import numpy as np
 
+from ..diagnosis.vehicle._causes import FORCE_NOISE, PARAMETER_ERROR
 from ..io._outputs import atomic_dir, write_json, write_text
 
 __all__ = ["OUTPUT_FILES", "write_campaign", "summary_markdown"]
@@ -33,7 +34,7 @@ def _single_intervals(doc, results, names, param):
         if r["status"] != "ok":
             continue
         for f in r["report"].get("findings", []):
-            if f.get("cause") == "parameter_error" and f.get("parameter") == param and f.get("interval"):
+            if f.get("cause") == PARAMETER_ERROR.name and f.get("parameter") == param and f.get("interval"):
                 rows.append((n, f["estimate"], f["interval"]))
     return rows
 
@@ -134,10 +135,10 @@ def summary_markdown(doc: dict) -> str:
         for v, d in dur["campaign_damage"].items():
             ratio = dur["damage_ratio_to_stabilised"].get(v)
             lines.append(f"| {v} | {d[0]:.4g} | {d[1]:.4g} | {'' if ratio is None else f'{ratio:.4g}'} |")
-        nq = dur["force_noise"].get("damage_ratio_quantiles") or {}
+        nq = dur[FORCE_NOISE.name].get("damage_ratio_quantiles") or {}
         for v, q in nq.items():
             if q:
-                lines.append(f"\nForce noise ({dur['force_noise']['paths']} draws per run): {v} / stabilised "
+                lines.append(f"\nForce noise ({dur[FORCE_NOISE.name]['paths']} draws per run): {v} / stabilised "
                              f"5-50-95 %: {q[0]:.4g}, {q[1]:.4g}, {q[2]:.4g}")
         pq = dur["joint_parameters"].get("extended_ratio_quantiles")
         if pq:

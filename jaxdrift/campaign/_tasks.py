@@ -183,7 +183,8 @@ def blocks_task(group, *, model: dict, model_given: bool, shared, theta_shared, 
 def _final(probs, model, causes, theta, idx_n, N, rs, ns) -> list[dict]:
     """Per run of the group: the corrections of the campaign's extended model, the sensor
     findings with their intervals (the shared parameters held at the joint estimate) and the gain."""
-    from ..diagnosis.vehicle._causes import FORCE_CHANNELS, _apply, _finding_for, _practical
+    from ..diagnosis.vehicle._causes import _apply, _finding_for, _practical
+    from ..io._corrections import NO_CORRECTION
     from ..diagnosis.vehicle._report import residual_gain
 
     cov = np.zeros((len(idx_n), len(idx_n)))
@@ -197,20 +198,17 @@ def _final(probs, model, causes, theta, idx_n, N, rs, ns) -> list[dict]:
             meat += sig2 * p.sandwich_meat(Ni)
         cov = NtN @ meat @ NtN
     p_ext, corr = _apply(model, causes, theta)
-    corrections = {ch: {"offset": float(corr[ch]["offset"]), "scale": float(1.0 / (1.0 + corr[ch]["kappa"])),
-                        "delay": float(corr[ch]["delay"])} for ch in FORCE_CHANNELS}
     out = []
     for p in probs:
-        zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
-        res0 = p.pipe.residuals(model, zero)
+        res0 = p.pipe.residuals(model, NO_CORRECTION)
         res1 = p.pipe.residuals(p_ext, corr)
         dynamic = sum(p.rows.values()) > 2
         findings = []
         for j, i in enumerate(idx_n):
             f = _finding_for(causes[i], theta[i], math.sqrt(max(cov[j, j], 0.0)), _practical(causes[i], p.pipe))
             findings.append(f)
-        gain = residual_gain(p, res0, res1, bool(causes), corrections, dynamic)
-        out.append({"corrections": corrections, "sensor_findings": findings, "gain": gain})
+        gain = residual_gain(p, res0, res1, bool(causes), corr, dynamic)
+        out.append({"corrections": corr.to_json(), "sensor_findings": findings, "gain": gain})
     return out
 
 
@@ -218,7 +216,7 @@ def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict) ->
     """The run's sensor effects chosen again by the single-run selection, against the campaign's
     vehicle (the joint parameters): the vehicle's errors no longer stand in for sensor effects."""
     _x64()
-    from ..diagnosis.vehicle._causes import _candidates
+    from ..diagnosis.vehicle._causes import SENSOR_KINDS, _candidates
     from ..diagnosis.vehicle._problem import _Problem
     from ..diagnosis.vehicle._residuals import ResidualPipeline
     from ..diagnosis.vehicle._select import _select
@@ -226,7 +224,7 @@ def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict) ->
     run = load_spec(spec, model, model_given)
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, joint_model)
-    sel = _select(prob, candidates=[c for c in _candidates(pipe) if c.kind != "parameter_error"])
+    sel = _select(prob, candidates=_candidates(pipe, SENSOR_KINDS))
     return {"causes": list(sel.fit.causes), "theta": [float(x) for x in sel.fit.theta]}
 
 
@@ -244,6 +242,7 @@ def durability_task(spec, *, model: dict, model_given: bool, extended: dict, noi
     import jax
     import jax.numpy as jnp
 
+    from ..diagnosis.vehicle._causes import FORCE_NOISE
     from ..durability._analysis import FORCES, _nominal, durability_analysis, section_forces
     from ..durability._damage import pseudo_damage, rainflow_cycles
     from ..durability._variants import OUTPUT_COLUMNS
@@ -252,7 +251,7 @@ def durability_task(spec, *, model: dict, model_given: bool, extended: dict, noi
     try:
         run = load_spec(spec, model, model_given)
         report = {"extended_model": extended,
-                  "findings": [{"cause": "force_noise", "estimate": float(noise)}] if noise > 0 else []}
+                  "findings": [FORCE_NOISE.finding(noise, 0.0, noise, "estimate", "")] if noise > 0 else []}
         res = durability_analysis(run, model, paths=int(paths), basquin_k=basquin_k, seed=seed, report=report,
                                   progress=False)
         ch = run.channels

@@ -6,8 +6,6 @@ codes: 0 written (runs that failed are listed in the summary), 2 bad input, 1 in
 
 from __future__ import annotations
 
-import sys
-import traceback
 
 DESCRIPTION = """\
 Diagnose a test campaign: many runs of the same vehicle (other roads, speeds, days, loggers).
@@ -111,9 +109,7 @@ def run_campaign(args) -> int:
     except InputError as e:
         raise UsageError(str(e)) from None
     except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
-        print("jaxdrift campaign: internal error:", file=sys.stderr)
-        traceback.print_exc()
-        return 1
+        return c.internal_failure("campaign")
     runs = doc["runs"]
     failed = [r for r in runs if r["status"] != "ok"]
     for r in failed:

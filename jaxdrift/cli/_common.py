@@ -147,3 +147,14 @@ def install_interrupt_handler() -> None:
     install_interrupt_handler._keep = (r, w)  # keep the sockets alive
     if os.environ.get("JAXDRIFT_TEST_ANNOUNCE"):  # tests of Ctrl-C in the first second
         os.write(2, b"jaxdrift: interrupt handler ready\n")
+
+
+def internal_failure(command: str, what: str = "", bar=None) -> int:
+    """Anything but bad input is our failure, not the user's: the traceback on stderr, exit 1."""
+    import traceback
+
+    if bar is not None:
+        bar.close()
+    print(f"jaxdrift {command}: internal error{' while ' + what if what else ''}:", file=sys.stderr)
+    traceback.print_exc()
+    return 1

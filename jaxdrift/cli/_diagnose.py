@@ -10,9 +10,7 @@ series through :mod:`jaxdrift.io._outputs` (temporary file + rename). Exit codes
 from __future__ import annotations
 
 import os
-import sys
 import time
-import traceback
 
 DESCRIPTION = """\
 Diagnose a measured run: what the force-driven simulation gets wrong, why, the extended model,
@@ -90,22 +88,16 @@ def run_diagnose(args) -> int:
             raise UsageError(f"{args.run}: an attitude run (column wx) takes --sensors, not --model")
         if args.series:
             raise UsageError("--series: only for vehicle runs (the attitude report holds its signals' summary)")
-        from ..diagnosis.attitude._diagnose import read_sensors
+        from ..diagnosis.attitude._diagnose import analysed_part, sensor_positions
         from ..io._attitude_files import read_attitude_run
 
-        run = _longest_segment_unless_joint(read_attitude_run(args.run, checks=True, **opts), c)
-        for w in run["warnings"]:
+        run, part_warning = analysed_part(read_attitude_run(args.run, checks=True, **opts))
+        for w in [*run["warnings"], *([part_warning] if part_warning else [])]:
             c.warn(w)
         for n in run["info"]["notes"]:
             c.info(n)
         reading = run["info"]
-        positions = None
-        if run["acc"] is not None:
-            if args.sensors is None:
-                raise UsageError(f"{args.run}: the run has accelerometer columns; give their positions with --sensors SENSORS.json")
-            positions = read_sensors(args.sensors, run["acc"].shape[1])
-        elif args.sensors is not None:
-            raise UsageError(f"{args.sensors}: sensor positions given but {args.run} has no accelerometer columns")
+        positions = sensor_positions(run, args.run, args.sensors)
         bar = c.progress(total=4, desc="diagnose", unit="step")  # from here on: computing
         bar.update(1)
         model_desc = {"sensors": os.path.basename(args.sensors) if args.sensors else None}
@@ -117,10 +109,7 @@ def run_diagnose(args) -> int:
         except UsageError:
             raise
         except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
-            bar.close()
-            print("jaxdrift diagnose: internal error while diagnosing the attitude run:", file=sys.stderr)
-            traceback.print_exc()
-            return 1
+            return c.internal_failure("diagnose", "diagnosing the attitude run", bar)
         bar.update(2)
         if args.plots:
             with atomic_dir(args.plots, "--plots") as tmp:
@@ -170,10 +159,7 @@ def run_diagnose(args) -> int:
 
             if isinstance(e, InputError):
                 raise
-            bar.close()
-            print("jaxdrift diagnose: internal error while diagnosing the vehicle run:", file=sys.stderr)
-            traceback.print_exc()
-            return 1
+            return c.internal_failure("diagnose", "diagnosing the vehicle run", bar)
     report["provenance"] = provenance(
         "diagnose", [args.run, args.model, args.sensors], model=model_desc,
         options={"kind": kind, **opts, "plots": args.plots, "series": args.series})
@@ -183,28 +169,6 @@ def run_diagnose(args) -> int:
     bar.close()
     c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))
     return 0
-
-
-def _longest_segment_unless_joint(run: dict, c) -> dict:
-    """An attitude run split by gaps (NaN rows between its segments) goes to the diagnosis whole
-    where the diagnosis analyses segments jointly (``SEGMENTS_JOINT`` in
-    ``jaxdrift.diagnosis.attitude._pipeline``); otherwise its longest segment does, with a warning
-    naming what is left out (never NaN rows into a diagnosis that assumes finite rates)."""
-    from ..diagnosis.attitude import _pipeline
-    from ..io import attitude_segments
-
-    segs = run.get("time_base", {}).get("segments") or [[0, len(run["t"])]]
-    if getattr(_pipeline, "SEGMENTS_JOINT", False) or segs == [[0, len(run["t"])]]:
-        return run
-    parts = attitude_segments(run)
-    best = max(parts, key=lambda p: len(p["t"]))
-    out = dict(run)
-    out.update({k: best[k] for k in ("t", "w", "q_ref", "acc")})
-    out["time_base"] = {**run["time_base"], "analysed_segment": list(best["rows"])}
-    i0, i1 = best["rows"]
-    c.warn(f"{run['path']}: {len(segs)} segments split by gaps; the attitude diagnosis analyses the longest, "
-           f"{run['t'][i0]:.6g} .. {run['t'][i1 - 1]:.6g} s ({i1 - i0} of {sum(b - a for a, b in segs)} rows)")
-    return out
 
 
 class _BarLog(list):

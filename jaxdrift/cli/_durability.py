@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
-import traceback
 
 DESCRIPTION = """\
 Durability analysis of a measured vehicle run: the chassis spring (section) forces f3, f4 of the
@@ -121,9 +119,7 @@ def run_durability(args) -> int:
     except InputError as e:
         raise UsageError(str(e)) from None
     except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
-        print("jaxdrift durability: internal error:", file=sys.stderr)
-        traceback.print_exc()
-        return 1
+        return c.internal_failure("durability")
     s = res.summary
     for v, r in s["damage_ratio_to_stabilised"].items():
         band = s["monte_carlo"].get("damage_ratio_quantiles", {}).get(v)

@@ -153,8 +153,10 @@ def run_paper(args) -> int:
     _check_out(args.out, PAPER_FILES, [args.params])
     params = _load_params(args.params)
     if args.quick:
-        args.duration, args.samples, args.models = min(args.duration, 10.0), min(args.samples, 8), min(args.models, 8)
-        args.compare_samples, args.spring_samples = min(args.compare_samples, 4), min(args.spring_samples, 2)
+        args = argparse.Namespace(**{**vars(args), "duration": min(args.duration, 10.0),
+                                     "samples": min(args.samples, 8), "models": min(args.models, 8),
+                                     "compare_samples": min(args.compare_samples, 4),
+                                     "spring_samples": min(args.spring_samples, 2)})
     for name in ("samples", "models", "compare_samples"):
         if getattr(args, name) < 2:
             raise _usage(f"--{name.replace('_', '-')} must be >= 2, got {getattr(args, name)}")

@@ -21,15 +21,10 @@ SERIES_STATES = ("z1", "z2", "z3", "beta")
 
 
 def corrected_forces(run, corrections: dict) -> dict[str, np.ndarray]:
-    """The report's force corrections applied to the measured forces on the run's grid."""
-    out = {}
-    for ch in ("f1", "f2"):
-        c = corrections.get(ch, {"offset": 0.0, "scale": 1.0, "delay": 0.0})
-        f = run[ch]
-        if c.get("delay", 0.0):
-            f = np.interp(run.t + c["delay"], run.t, f)
-        out[ch] = (f - c.get("offset", 0.0)) / c.get("scale", 1.0)
-    return out
+    """The report's force corrections (JSON) applied to the measured forces on the run's grid."""
+    from ..io._corrections import Corrections
+
+    return Corrections.from_json(corrections).apply(run.t, {ch: run[ch] for ch in ("f1", "f2")})
 
 
 def simulate_force_driven(run, models: list[dict], forces: list[dict]) -> list[np.ndarray]:

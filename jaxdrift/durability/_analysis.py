@@ -16,6 +16,8 @@ import numpy as np
 
 from ..ensemble._montecarlo import monte_carlo
 from ..errors import InputError
+from ..diagnosis.vehicle._causes import FORCE_NOISE
+from ..io._corrections import NO_CORRECTION, Corrections
 from ..io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ..io._outputs import sha256_file
 from ..io._provenance import jaxdrift_version
@@ -31,7 +33,7 @@ QUANTILES = (0.05, 0.5, 0.95)
 FORCES = ("f3", "f4")
 N_BINS = 40
 
-_NO_CORRECTION = {ch: {"offset": 0.0, "scale": 1.0, "delay": 0.0} for ch in ("f1", "f2")}
+_NO_CORRECTION = NO_CORRECTION.to_json()
 
 
 @dataclasses.dataclass
@@ -100,7 +102,8 @@ def section_forces(t, f1, f2, model=None, *, beta=None, beta_rate=None, s1=None,
             ddb = np.gradient(db, dt)
             dfilter = {"kind": "none: plain central differences (filter_pitch=False)", "cutoff_hz": None}
         pitch = np.stack([b, db, ddb], axis=1)
-    sf = build_section_forces(t, np.stack([f1, f2], axis=1), pitch, p, p_ext, ext["corrections"], spring, h)
+    sf = build_section_forces(t, np.stack([f1, f2], axis=1), pitch, p, p_ext, Corrections.from_json(ext["corrections"]),
+                              spring, h)
     out, code = _nominal(sf)
     out = np.asarray(out)
     if int(code) != 0:
@@ -205,9 +208,9 @@ def monte_carlo_damage(sf, sigma: float, paths: int, *, variants, basquin_k=5.0,
 
 
 def _noise_level(report, run) -> tuple[float, str]:
-    for f in (report or {}).get("findings", []):
-        if f.get("cause") == "force_noise" and f.get("estimate") is not None:
-            return float(f["estimate"]), "diagnosis force_noise finding"
+    level = FORCE_NOISE.level_in((report or {}).get("findings"))
+    if level is not None:
+        return level, f"diagnosis {FORCE_NOISE.name} finding"
     fs = 1.0 / run.dt
     s = 0.5 * (noise_level(run["f1"], fs) + noise_level(run["f2"], fs))
     return s, ("the measured forces' own noise level (4th differences / high-band PSD; the diagnosis "

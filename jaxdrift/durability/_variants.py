@@ -28,6 +28,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..ensemble._noise import remove_input_effects, white_noise
+from ..io._corrections import Corrections
 from ..models._halfcar import pitch_spring_torque, spring_forces
 from ..models._params import HalfCarParams
 from ..solvers._inputs import SampledSignal
@@ -101,7 +102,7 @@ class SectionForces(eqx.Module):
     ts: jax.Array            # (n,) sample times
     params: HalfCarParams
     params_ext: HalfCarParams
-    corr: jax.Array          # (3, 2): offset, scale, delay per force channel
+    corr: jax.Array          # (4, 2): offset, scale, delay, drift per force channel (Corrections.as_rows)
     spring: jax.Array        # (2,): k_rot, d_rot
     t0: float = eqx.field(static=True)
     dt: float = eqx.field(static=True)
@@ -139,6 +140,9 @@ class SectionForces(eqx.Module):
 
             f_st, lam_st, c_st = stabilised(p, sig)
             corrected = remove_input_effects(meas, self.h, self.corr[0], self.corr[1], self.corr[2])
+            # a scale drifting over the run (Corrections: 1 / (1 + drift (t - t_mid))); 1 without
+            t_rel = jnp.arange(meas.shape[0], dtype=meas.dtype)[:, None] * self.h - 0.5 * (self.span[1] - self.span[0])
+            corrected = corrected / (1.0 + self.corr[3][None, :] * t_rel)
             f_ex, lam_ex, c_ex = stabilised(self.params_ext, SampledSignal(self.t0, self.h, corrected))
             cols += [f_st, f_ex]
             code = jnp.maximum(code, jnp.maximum(c_st, c_ex))
@@ -179,14 +183,13 @@ def upsample_forces(forces, m: int) -> np.ndarray:
     return up
 
 
-def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corrections: dict,
+def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corrections: Corrections,
                          spring: dict, h: float) -> SectionForces:
     """A :class:`SectionForces` for a run (numpy inputs; ``pitch`` (n, 3) or None)."""
     t = np.asarray(t, float)
     dt = float((t[-1] - t[0]) / (t.size - 1))
     has_pitch = pitch is not None
-    corr = np.array([[corrections[ch][k] for ch in ("f1", "f2")] for k in ("offset", "scale", "delay")],
-                    dtype=float)
+    corr = corrections.as_rows()
     to_p = lambda d: jax.tree_util.tree_map(  # noqa: E731
         lambda v: jnp.asarray(v, jnp.float64), HalfCarParams.from_dict(d))
     m = max(1, int(round(dt / h)))

@@ -297,7 +297,7 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
         data["t"] = np.arange(cols.n) / fs
     cols.empty = {c: cols.empty.get(file_of[c], -1) for c in used}
     notes += list(cols.notes)
-    converted = _convert_units(fname, used, factors, cols, file_of, data, notes)
+    converted, cols = _convert_units(fname, used, factors, cols, file_of, data, notes)
     q_t = cols.quantum.get(file_of["t"], 0.0) * converted.get("t", 1.0)
     for c in used:
         if c in data:
@@ -354,8 +354,8 @@ def _convert_units(fname, used, factors, cols, file_of, data, notes) -> dict:
                 data[c] = data[c] * f
             converted[c] = f
     if "t" in converted and cols.times:
-        cols.times = {c: v * converted["t"] for c, v in cols.times.items()}
-    return converted
+        cols = dataclasses.replace(cols, times={c: v * converted["t"] for c, v in cols.times.items()})
+    return converted, cols
 
 
 def _time_base(cols: Columns, data: dict, q_t: float, fs, kind: str, strict: bool, notes: list):
@@ -368,7 +368,7 @@ def _time_base(cols: Columns, data: dict, q_t: float, fs, kind: str, strict: boo
             raise InputError(f"{fname}: the channels are written at different times "
                              f"({', '.join(f'{c}: {len(v)} samples' for c, v in cols.times.items())}); "
                              f"--strict-time needs one time column (without it the run is resampled)")
-        t_raw, cols.times = first, {}
+        t_raw, cols = first, dataclasses.replace(cols, times={})
     if not cols.times:
         _check_order(cols, t_raw, kind)
         if strict or _is_uniform(t_raw, q_t, fs):

@@ -5,7 +5,7 @@ the *true* vehicle on an ISO 8608 road with hills (``jaxdrift.models._road``), i
 (adaptive DOPRI5 at tight tolerances), sampled at ``fs``; the contact forces (4.3) are the true
 wheel forces. The sensors then apply the hidden effects in the measured-data contract's form
 (``docs/measured-data.md``): ``measured(t) = scale * true(t - delay) + offset + noise``; a
-``parameter_error`` makes the true vehicle differ from the model (true = ratio x model).
+a parameter error makes the true vehicle differ from the model (true = ratio x model).
 
 :func:`draw_effects` draws hidden effects (kind, channel or parameter, size) from a seed, at
 "realistic" or "small" magnitudes, restricted to what the run's channels can reveal.
@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..diagnosis.vehicle._causes import (FORCE_DELAY, FORCE_GAIN_DRIFT, FORCE_NOISE, FORCE_OFFSET, FORCE_SCALE,
+                                         PARAMETER_ERROR)
 from ..io._csvio import DEFAULT_MODEL
 
 __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES",
@@ -22,12 +24,12 @@ __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_ru
 
 #: (low, high) magnitude of each effect kind; the sign is drawn separately where it matters
 SIZES = {
-    "realistic": {"force_noise": (10.0, 40.0), "force_offset": (30.0, 120.0),
-                  "force_scale": (0.01, 0.05), "force_delay": (0.002, 0.010),
-                  "parameter_error": (0.04, 0.10)},
-    "small": {"force_noise": (2.0, 5.0), "force_offset": (8.0, 20.0),
-              "force_scale": (0.003, 0.008), "force_delay": (0.0006, 0.002),
-              "parameter_error": (0.015, 0.03)},
+    "realistic": {FORCE_NOISE.name: (10.0, 40.0), FORCE_OFFSET.name: (30.0, 120.0),
+                  FORCE_SCALE.name: (0.01, 0.05), FORCE_DELAY.name: (0.002, 0.010),
+                  PARAMETER_ERROR.name: (0.04, 0.10), FORCE_GAIN_DRIFT.name: (5e-4, 2e-3)},
+    "small": {FORCE_NOISE.name: (2.0, 5.0), FORCE_OFFSET.name: (8.0, 20.0),
+              FORCE_SCALE.name: (0.003, 0.008), FORCE_DELAY.name: (0.0006, 0.002),
+              PARAMETER_ERROR.name: (0.015, 0.03), FORCE_GAIN_DRIFT.name: (1.5e-4, 4e-4)},
 }
 
 #: parameters a run reveals, by the channels it has (without spring travel the chassis
@@ -60,37 +62,37 @@ def draw_effects(seed: int, *, n_systematic: int = 1, size: str = "realistic",
     rng = np.random.default_rng(seed)
     lo_hi = SIZES[size]
     params = revealed_parameters(channels)
-    pool = list(kinds) if kinds is not None else ["force_offset", "force_scale", "force_delay",
-                                                   "parameter_error"]
-    if not params and "parameter_error" in pool:
-        pool.remove("parameter_error")
+    pool = list(kinds) if kinds is not None else [k.name for k in (FORCE_OFFSET, FORCE_SCALE, FORCE_DELAY,
+                                                                  PARAMETER_ERROR)]
+    if not params and PARAMETER_ERROR.name in pool:
+        pool.remove(PARAMETER_ERROR.name)
     out = []
     used = set()
-    while len([e for e in out if e["cause"] != "force_noise"]) < n_systematic:
+    while len([e for e in out if e["cause"] != FORCE_NOISE.name]) < n_systematic:
         kind = pool[rng.integers(len(pool))]
         lo, hi = lo_hi[kind]
         mag = rng.uniform(lo, hi)
         sign = 1.0 if rng.random() < 0.5 else -1.0
-        if kind == "parameter_error":
+        if kind == PARAMETER_ERROR.name:
             target = params[rng.integers(len(params))]
             e = {"cause": kind, "parameter": target, "value": 1.0 + sign * mag}
         else:
             target = ("f1", "f2")[rng.integers(2)]
-            if kind == "force_scale":
+            if kind == FORCE_SCALE.name:
                 val = 1.0 + sign * mag
-            elif kind == "force_delay":
+            elif kind == FORCE_DELAY.name:
                 val = mag  # sensors lag; they do not lead
             else:
                 val = sign * mag
             e = {"cause": kind, "channel": target, "value": val}
         key = (kind, target)
-        if key in used or (kind != "parameter_error" and any(k[0] == kind for k in used)):
+        if key in used or (kind != PARAMETER_ERROR.name and any(k[0] == kind for k in used)):
             continue
         used.add(key)
         out.append(e)
     if noise:
-        lo, hi = lo_hi["force_noise"]
-        out.append({"cause": "force_noise", "value": float(rng.uniform(lo, hi))})
+        lo, hi = lo_hi[FORCE_NOISE.name]
+        out.append({"cause": FORCE_NOISE.name, "value": float(rng.uniform(lo, hi))})
     return out
 
 
@@ -172,24 +174,28 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
 
 
 def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = None) -> dict:
-    """Measured forces from the true ones: ``scale * true(t - delay) + offset + noise``.
+    """Measured forces from the true ones: ``(1 + drift (t - t_mid)) scale true(t - delay) + offset
+    + noise``.
 
     ``delayed``: {channel: true force at t - delay} (from :func:`simulate_true_run`'s extra
     times); noise from ``numpy.random.default_rng(seed)``.
     """
     meas = {ch: np.array(true[ch], dtype=float) for ch in ("f1", "f2")}
     for e in effects:
-        if e["cause"] == "force_delay":
+        if e["cause"] == FORCE_DELAY.name:
             meas[e["channel"]] = np.array(delayed[e["channel"]], dtype=float)
+    t = np.asarray(true["t"], dtype=float)
     for e in effects:
-        if e["cause"] == "force_scale":
+        if e["cause"] == FORCE_SCALE.name:
             meas[e["channel"]] = meas[e["channel"]] * float(e["value"])
+        if e["cause"] == FORCE_GAIN_DRIFT.name:  # the gain drifts linearly about the run's middle
+            meas[e["channel"]] = meas[e["channel"]] * (1.0 + float(e["value"]) * (t - 0.5 * (t[0] + t[-1])))
     for e in effects:
-        if e["cause"] == "force_offset":
+        if e["cause"] == FORCE_OFFSET.name:
             meas[e["channel"]] = meas[e["channel"]] + float(e["value"])
     rng = np.random.default_rng(seed)
     for e in effects:
-        if e["cause"] == "force_noise":
+        if e["cause"] == FORCE_NOISE.name:
             for ch in ("f1", "f2"):
                 meas[ch] = meas[ch] + float(e["value"]) * rng.standard_normal(len(meas[ch]))
     return meas
@@ -207,11 +213,11 @@ def make_run(effects=(), *, model: dict | None = None, duration: float = 20.0, f
     model = dict(DEFAULT_MODEL if model is None else model)
     true_params = dict(model)
     for e in effects:
-        if e["cause"] == "parameter_error":
+        if e["cause"] == PARAMETER_ERROR.name:
             true_params[e["parameter"]] = model[e["parameter"]] * float(e["value"])
     n = int(round(duration * fs)) + 1
     t = np.arange(n) / fs
-    delays = [e for e in effects if e["cause"] == "force_delay"]
+    delays = [e for e in effects if e["cause"] == FORCE_DELAY.name]
     extra = np.concatenate([t - float(e["value"]) for e in delays]) if delays else None
     true = simulate_true_run(true_params, duration=duration, fs=fs, speed=speed,
                              road_class=road_class, seed=seed, hill_height=hill_height,

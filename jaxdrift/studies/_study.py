@@ -456,11 +456,12 @@ def run_paper_study(cfg: StudyConfig, log: Callable[[str], None] = print) -> dic
     timings: dict[str, float] = {}
     t_start = time.perf_counter()
 
-    def step(name):
-        timings[name] = time.perf_counter() - step.t
-        step.t = time.perf_counter()
+    last = [t_start]
 
-    step.t = t_start
+    def step(name):
+        now = time.perf_counter()
+        timings[name] = now - last[0]
+        last[0] = now
 
     log(f"[1/6] virtual measurement: road class {cfg.road_class}, {cfg.speed} m/s, {cfg.duration} s ...")
     road = iso8608_road(cfg.road_class, seed=cfg.road_seed, hill_height=cfg.hill_height,

@@ -13,6 +13,7 @@ non-rigidity"). :func:`array_step` is the pipeline step that turns them into fin
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from scipy import stats
@@ -470,7 +471,7 @@ def _array_gyro_biases(s, af, N, tq):
                 f"the array's centripetal accelerations (M+ = omega~ omega~) match the gyro's {ch} only after "
                 f"removing {fmt(b)} rad/s (z = {fmt(abs(b) / se)})",
                 abs(b) / se, channel=ch))
-            s.corrections[ch]["bias"] = b
+            s.corrections[ch] = replace(s.corrections[ch], bias=b)
             s.bias_path[:, c] = b
     s.bias_source = "array"
     s.observed.append("gyro biases through the array's centripetal terms")
@@ -482,7 +483,7 @@ def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
     N = positions.shape[0]
     blocks = af["blocks"]
     W_of = _W_of(af)
-    b_rep = np.array([s.corrections[c]["bias"] if s.bias_source == "array" else 0.0 for c in CHANNELS])
+    b_rep = np.array([s.corrections[c].bias if s.bias_source == "array" else 0.0 for c in CHANNELS])
     resid_after = array_residual(af["A"], positions + pos_corr, W_of(af["wbar"] - b_rep))
     m2, _, nb2 = rigidity_rms(resid_after, N, blocks)
     resid_raw = array_residual(af["A"], positions, W_of(af["wbar"])) if fit_bias else af["resid_before"]

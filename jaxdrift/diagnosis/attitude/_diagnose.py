@@ -46,16 +46,42 @@ def run_attitude_diagnosis(run_path: str, sensors_path: str | None = None, plots
     run has what they need) after the analysis succeeded.
     """
     run = read_attitude_run(run_path)
-    positions = None
-    if run["acc"] is not None:
-        if sensors_path is None:
-            raise _usage_error(f"{run_path}: the run has accelerometer columns; give their positions with --sensors SENSORS.json")
-        positions = read_sensors(sensors_path, run["acc"].shape[1])
-    elif sensors_path is not None:
-        raise _usage_error(f"{sensors_path}: sensor positions given but {run_path} has no accelerometer columns (a1x, a1y, a1z, ...)")
-    report, plots = diagnose_attitude(run, positions)
+    report, plots = diagnose_attitude(run, sensor_positions(run, run_path, sensors_path))
     if plots_dir is not None:
         os.makedirs(plots_dir, exist_ok=True)
         report["plots"] = write_plots(plots, plots_dir)
     return report
 
+
+def sensor_positions(run: dict, run_path, sensors_path):
+    """The accelerometer positions a run needs: read from ``sensors_path`` where the run has
+    accelerometer columns (None where it has none); a UsageError where one is given without the
+    other."""
+    if run["acc"] is not None:
+        if sensors_path is None:
+            raise _usage_error(f"{run_path}: the run has accelerometer columns; give their positions with --sensors SENSORS.json")
+        return read_sensors(sensors_path, run["acc"].shape[1])
+    if sensors_path is not None:
+        raise _usage_error(f"{sensors_path}: sensor positions given but {run_path} has no accelerometer columns (a1x, a1y, a1z, ...)")
+    return None
+
+
+def analysed_part(run: dict) -> tuple[dict, str | None]:
+    """The run the diagnosis analyses, and a warning where that is not all of it. A run split by
+    gaps (NaN rows between its segments) goes whole where the pipeline analyses segments jointly
+    (``SEGMENTS_JOINT`` in ``_pipeline``); otherwise its longest segment does, and the warning
+    names what is left out (never NaN rows into a diagnosis that assumes finite rates)."""
+    from ...io import attitude_segments
+    from ._pipeline import SEGMENTS_JOINT
+
+    segs = run.get("time_base", {}).get("segments") or [[0, len(run["t"])]]
+    if SEGMENTS_JOINT or segs == [[0, len(run["t"])]]:
+        return run, None
+    parts = attitude_segments(run)
+    best = max(parts, key=lambda p: len(p["t"]))
+    out = dict(run)
+    out.update({k: best[k] for k in ("t", "w", "q_ref", "acc")})
+    out["time_base"] = {**run["time_base"], "analysed_segment": list(best["rows"])}
+    i0, i1 = best["rows"]
+    return out, (f"{run['path']}: {len(segs)} segments split by gaps; the attitude diagnosis analyses the longest, "
+                 f"{run['t'][i0]:.6g} .. {run['t'][i1 - 1]:.6g} s ({i1 - i0} of {sum(b - a for a, b in segs)} rows)")

@@ -23,11 +23,12 @@ from __future__ import annotations
 
 import math
 import sys
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy import stats
 
+from ...io._corrections import GyroCorrection
 from ...models._quaternion import (
     integrate_rates_np,
     quat_conjugate_np,
@@ -196,7 +197,7 @@ def gyro_noise_step(s):
         )
     s.wn, s.floor, s.noise_found, s.sigma_axis = wn, floor, noise_found, sigma_axis
     s.scale_floor, s.bias_floor, s.drift_floor = SCALE_FLOOR, BIAS_FLOOR, DRIFT_FLOOR
-    s.corrections = {c: {"bias": 0.0, "scale": 1.0} for c in CHANNELS}
+    s.corrections = {c: GyroCorrection() for c in CHANNELS}
     s.bias_path = np.zeros((s.n, 3))
     s.scale = np.ones(3)
 
@@ -371,7 +372,7 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
                 abs(s_hat - 1) / s_se, channel=ch))
         if c not in fit["weak_scale"]:
             s.scale_se[c] = math.sqrt(max(var_int[sc_idx + c], 0.0))
-        s.corrections[ch]["scale"] = float(s.scale[c])
+        s.corrections[ch] = replace(s.corrections[ch], scale=float(s.scale[c]))
         sl = slice(offs[c], offs[c + 1])
         if c in drift:
             d = drift[c]
@@ -394,10 +395,10 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
                 f"rad/s/sqrt(s) (REML likelihood ratio {fmt(d['lr'])} against a constant bias)",
                 math.sqrt(max(d["lr"], 0.0)), channel=ch))
             s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
-            s.corrections[ch]["bias_drift"] = float(d["K"])
+            s.corrections[ch] = replace(s.corrections[ch], bias_drift=float(d["K"]))
         s.bias_se[c] = b0_half / z95
         if abs(b0) / _test_se(b0_se, b0_half / z95, infl) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
-            s.corrections[ch]["bias"] = float(b0)
+            s.corrections[ch] = replace(s.corrections[ch], bias=float(b0))
             if c not in drift:
                 s.bias_path[:, c] = b0
             s.findings.append(finding(
@@ -509,7 +510,7 @@ def static_segment_step(s):
         b = float(st["mean"][c])
         se = math.sqrt(max(wn["var"][c], s.floor**2) / st["n"])
         s.bias_se[c] = se
-        s.corrections[ch]["bias"] = b
+        s.corrections[ch] = replace(s.corrections[ch], bias=b)
         s.bias_path[:, c] = b
         if abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
             s.findings.append(finding(

@@ -11,6 +11,7 @@ import os
 
 import numpy as np
 
+from ...io._corrections import corrections_json
 from ...io._outputs import check_report_finite
 from ...io._timebase import run_block
 from .._intervals import joint_intervals
@@ -40,7 +41,7 @@ def assemble_report(s):
         "kind": "attitude",
         "simulation_error": s.sim_err,
         "findings": ranked,
-        "extended_model": {"corrections": s.corrections},
+        "extended_model": {"corrections": corrections_json(s.corrections)},
         "gain": s.gain if s.gain is not None else {"metric": None, "before": None, "after": None},
         "observability": {"used": s.observed, "not_observed": s.not_observed, "notes": s.notes},
         "not_determined": s.not_determined,

@@ -1,79 +1,331 @@
-"""Causes as parameters of the comparison: the candidates, their plausible ranges, how a set of
-causes at ``theta`` changes the model and the measured forces, and a finding's 95 % interval.
+"""The catalogue of vehicle causes: one final class per cause kind.
 
-``true force = (measured(t + delay) - offset) / scale``, ``true parameter = ratio x model``; the
-internal coordinate ``theta`` is 0 for no effect (``docs/diagnosis.md``).
+Each kind owns everything the diagnosis needs to know about it: its name in the report, its unit,
+the internal coordinate ``theta`` (0 = no effect) and the reported estimate, the plausible range of
+``theta``, its finite-difference step, the practical floor below which it is not worth reporting,
+the method part of its interval, how it changes the model or the measured forces (the frozen
+:class:`~jaxdrift.io._corrections.Corrections`), the candidates it adds, how a generator applies it
+to a true signal, and the words of its evidence. The rest of the diagnosis, the campaign, durability
+and the generators ask the kind; none of them spells a kind's name.
+
+Adding a cause: one subclass of :class:`CauseKind` here, registered in ``VEHICLE_CAUSES``, its entry
+in the generators, its tests (``docs/architecture.md``, "Adding a cause").
 """
 
 from __future__ import annotations
 
+import abc
 import math
 from dataclasses import dataclass
+from typing import ClassVar, final
 
 import numpy as np
 
+from ...io._corrections import FORCE_CHANNELS, Corrections
 from ...io._csvio import MODEL_KEYS
 
-FORCE_CHANNELS = ("f1", "f2")
+__all__ = ["CauseKind", "Cause", "FORCE_OFFSET", "FORCE_SCALE", "FORCE_DELAY", "FORCE_GAIN_DRIFT",
+           "PARAMETER_ERROR", "FORCE_NOISE", "VEHICLE_CAUSES", "SENSOR_KINDS", "kind_named",
+           "FORCE_CHANNELS"]
+
+#: familywise significance level of the cause tests (Bonferroni over the candidates)
+ALPHA = 1e-3
+
+
+class CauseKind(abc.ABC):
+    """A kind of cause (abstract). Subclasses are final and instantiated once (the registry)."""
+
+    name: ClassVar[str]
+    unit: ClassVar[str]
+    #: the report's key of the target: ``"channel"`` (a force channel) or ``"parameter"``
+    target_key: ClassVar[str] = "channel"
+    #: causes smaller than this (theta units; None: a share of the sample interval) are not worth
+    #: reporting, far below any sensor's specification
+    practical: ClassVar[float | None] = 0.0
+    #: method component of a finding's 95 % interval, relative to the size of the effect
+    #: (|theta|): the comparison computes a cause's signature by interpolation and finite
+    #: differences on the sampled record and weighs it with the model's noise response. Calibrated
+    #: on the independent tuning sweep (design seed 31) as the smallest value that puts 95 % of
+    #: the true values of right findings inside their intervals
+    #: (``benchmarks/independent/calibrate_intervals.py``, docs/diagnosis.md "Intervals").
+    method_rel: ClassVar[float] = 0.0
+    #: a sensor effect of one logger (a campaign's nuisance) rather than of the vehicle
+    is_sensor: ClassVar[bool] = True
+
+    def __repr__(self) -> str:
+        return self.name
+
+    def __reduce__(self):  # pickled (Dask) as the registry's instance
+        return (kind_named, (self.name,))
+
+    # -- coordinates
+    def to_estimate(self, theta: float) -> float:
+        return theta
+
+    def to_theta(self, estimate: float) -> float:
+        return estimate
+
+    def interval(self, theta: float, half: float) -> tuple[float, float]:
+        """The reported interval of ``theta +- half``."""
+        return self.to_estimate(theta - half), self.to_estimate(theta + half)
+
+    def bounds(self, pipe) -> tuple[float, float]:
+        """The physically plausible range of theta (``pipe``: the run's pipeline, or None)."""
+        return -math.inf, math.inf
+
+    @abc.abstractmethod
+    def fd_step(self, dt: float) -> float:
+        """Finite-difference step of theta on a run sampled at ``dt``."""
+
+    def floor(self, pipe) -> float:
+        return self.practical
+
+    # -- what it changes
+    def candidates(self) -> list[str]:
+        """The targets this kind is tried on."""
+        return list(FORCE_CHANNELS)
+
+    @abc.abstractmethod
+    def correct(self, model: dict, params: dict, corr: Corrections, target: str,
+                theta: float) -> tuple[dict, Corrections]:
+        """``params`` (the model with the causes so far) and ``corr`` with this cause at ``theta``
+        added, as new objects; ``model``: the model as given."""
+
+    # -- words
+    @abc.abstractmethod
+    def describe(self, target: str, estimate: float) -> str:
+        """The cause in words, for evidence sentences."""
+
+
+@final
+class ForceOffset(CauseKind):
+    """A constant offset on a force channel [N]; target ``both``: the same on both."""
+
+    name = "force_offset"
+    unit = "N"
+    practical = 0.05
+
+    def fd_step(self, dt):
+        return 1.0
+
+    def candidates(self):
+        # the same offset on both forces: indistinguishable from a mass error without heave data
+        return [*FORCE_CHANNELS, "both"]
+
+    def correct(self, model, params, corr, target, theta):
+        for ch in (FORCE_CHANNELS if target == "both" else (target,)):
+            corr = corr.with_channel(ch, offset=corr[ch].offset + theta)
+        return params, corr
+
+    def describe(self, target, estimate):
+        where = "both forces" if target == "both" else target
+        return f"an offset of {estimate:+.4g} N on {where}"
+
+
+@final
+class ForceScale(CauseKind):
+    """A scale error: ``measured = scale x true``; theta = 1/scale - 1."""
+
+    name = "force_scale"
+    unit = "ratio"
+    practical = 2e-4
+
+    def to_estimate(self, theta):
+        return 1.0 / (1.0 + theta)
+
+    def to_theta(self, estimate):
+        return 1.0 / estimate - 1.0
+
+    def interval(self, theta, half):
+        # estimate = 1 / (1 + theta): decreasing
+        return self.to_estimate(min(theta + half, 10.0)), self.to_estimate(max(theta - half, -0.99))
+
+    def bounds(self, pipe):
+        return -0.5, 1.0
+
+    def fd_step(self, dt):
+        return 1e-3
+
+    def correct(self, model, params, corr, target, theta):
+        return params, corr.with_channel(target, gain=corr[target].gain * (1.0 + theta))
+
+    def describe(self, target, estimate):
+        return f"a scale of {estimate:.5g} on {target}"
+
+
+@final
+class ForceDelay(CauseKind):
+    """A delay of a force channel [s] (positive: the channel lags)."""
+
+    name = "force_delay"
+    unit = "s"
+    practical = None  # 1e-3 of the sample interval
+
+    def bounds(self, pipe):
+        lim = 0.5 * pipe.trim * pipe.h
+        return -lim, lim
+
+    def fd_step(self, dt):
+        return 0.1 * dt
+
+    def floor(self, pipe):
+        return 1e-3 * pipe.h
+
+    def correct(self, model, params, corr, target, theta):
+        return params, corr.with_channel(target, delay=corr[target].delay + theta)
+
+    def describe(self, target, estimate):
+        return f"a delay of {estimate * 1e3:+.4g} ms on {target}"
+
+
+@final
+class ForceGainDrift(CauseKind):
+    """A scale that changes linearly over the run (a strain-gauge transducer warming up):
+    ``measured = (1 + drift (t - t_mid)) x scale x true``; theta = drift [1/s]."""
+
+    name = "force_gain_drift"
+    unit = "1/s"
+    practical = 1e-5
+
+    def bounds(self, pipe):
+        # the scale stays within 0.5..1.5 over the run
+        half = 0.5 * pipe.h * (pipe.n - 1) if pipe is not None else 1.0
+        return -0.5 / half, 0.5 / half
+
+    def fd_step(self, dt):
+        return 1e-5
+
+    def correct(self, model, params, corr, target, theta):
+        return params, corr.with_channel(target, drift=corr[target].drift + theta)
+
+    def describe(self, target, estimate):
+        return f"a scale drifting by {estimate * 100:+.3g} % per second on {target}"
+
+
+@final
+class ParameterError(CauseKind):
+    """A model parameter off: ``true = ratio x model``; theta = ratio - 1."""
+
+    name = "parameter_error"
+    unit = "ratio"
+    target_key = "parameter"
+    practical = 2e-4
+    is_sensor = False
+
+    def to_estimate(self, theta):
+        return 1.0 + theta
+
+    def to_theta(self, estimate):
+        return estimate - 1.0
+
+    def bounds(self, pipe):
+        return -0.6, 1.5
+
+    def fd_step(self, dt):
+        return 1e-3
+
+    def candidates(self):
+        # g is not a candidate: gravity is known to 0.3 % anywhere on Earth, while its signature
+        # (the weight of every body) is an equal offset on both forces plus a small dynamic part,
+        # so as a candidate it only stood in for force offsets (measured on independent runs:
+        # offsets on f1 and f2 reported as one offset and a g error of x1.009)
+        return [k for k in MODEL_KEYS if k != "g"]
+
+    def correct(self, model, params, corr, target, theta):
+        return {**params, target: model[target] * (1.0 + theta)}, corr
+
+    def describe(self, target, estimate):
+        return f"{target} = {estimate:.5g} x the model value"
+
+
+@final
+class ForceNoise:
+    """White noise on the force samples [N] (not a parameter of the comparison: a level)."""
+
+    name = "force_noise"
+    unit = "N"
+    method_rel = 0.05
+
+    def __repr__(self) -> str:
+        return self.name
+
+    def method_half(self, sigma: float) -> float:
+        return 1.96 * self.method_rel * abs(sigma)
+
+    def finding(self, sigma: float, lo: float, hi: float, estimate_kind: str, evidence: str) -> dict:
+        return {"cause": self.name, "estimate": float(sigma), "unit": self.unit,
+                "interval": [float(lo), float(hi)], "estimate_kind": estimate_kind, "evidence": evidence}
+
+    def level_in(self, findings) -> float | None:
+        """The level a report's findings give, or None."""
+        for f in findings or []:
+            if f.get("cause") == self.name and f.get("estimate") is not None:
+                return float(f["estimate"])
+        return None
+
+
+FORCE_OFFSET = ForceOffset()
+FORCE_SCALE = ForceScale()
+FORCE_DELAY = ForceDelay()
+FORCE_GAIN_DRIFT = ForceGainDrift()
+PARAMETER_ERROR = ParameterError()
+FORCE_NOISE = ForceNoise()
+
+#: the candidate kinds, in the order their candidates are tried
+VEHICLE_CAUSES: tuple[CauseKind, ...] = (FORCE_OFFSET, FORCE_SCALE, FORCE_DELAY, FORCE_GAIN_DRIFT,
+                                         PARAMETER_ERROR)
+SENSOR_KINDS = tuple(k for k in VEHICLE_CAUSES if k.is_sensor)
+_BY_NAME = {k.name: k for k in (*VEHICLE_CAUSES, FORCE_NOISE)}
+
+
+def kind_named(name: str):
+    """The kind whose report name is ``name``."""
+    try:
+        return _BY_NAME[name]
+    except KeyError:
+        raise ValueError(f"unknown cause {name!r}; known: {sorted(_BY_NAME)}") from None
 
 
 @dataclass(frozen=True)
 class Cause:
-    """One candidate cause: ``kind`` in force_offset/force_scale/force_delay/parameter_error and
-    the channel (f1/f2) or model key it acts on."""
+    """One candidate cause: a kind and the channel (f1/f2/both) or model key it acts on.
+    ``Cause("force_offset", "f1")`` is accepted for ``Cause(FORCE_OFFSET, "f1")``."""
 
-    kind: str
+    kind: CauseKind
     target: str
+
+    def __post_init__(self):
+        if isinstance(self.kind, str):
+            object.__setattr__(self, "kind", kind_named(self.kind))
 
     @property
     def label(self) -> str:
-        return f"{self.kind}[{self.target}]"
+        return f"{self.kind.name}[{self.target}]"
 
-    # internal coordinate theta (0 = no effect) <-> reported estimate
     def to_estimate(self, theta: float) -> float:
-        if self.kind == "force_scale":
-            return 1.0 / (1.0 + theta)  # theta = 1/scale - 1
-        if self.kind == "parameter_error":
-            return 1.0 + theta  # theta = ratio - 1
-        return theta
+        return self.kind.to_estimate(theta)
 
     def unit(self) -> str:
-        return {"force_offset": "N", "force_scale": "ratio", "force_delay": "s",
-                "parameter_error": "ratio"}[self.kind]
+        return self.kind.unit
 
     def fd_step(self, dt: float) -> float:
-        return {"force_offset": 1.0, "force_scale": 1e-3, "force_delay": 0.1 * dt,
-                "parameter_error": 1e-3}[self.kind]
+        return self.kind.fd_step(dt)
+
+    def target_json(self, target: str | None = None) -> dict:
+        return {self.kind.target_key: self.target if target is None else target}
 
 
-def _apply(model: dict, causes: list[Cause], theta) -> tuple[dict, dict]:
-    """(parameters, corrections) for the causes at theta."""
+def _apply(model: dict, causes: list[Cause], theta) -> tuple[dict, Corrections]:
+    """(parameters, corrections) for the causes at theta (new objects; ``model`` unchanged)."""
     p = dict(model)
-    corr = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+    corr = Corrections()
     for c, th in zip(causes, theta):
-        th = float(th)
-        if c.kind == "parameter_error":
-            p[c.target] = model[c.target] * (1.0 + th)
-        elif c.kind == "force_offset":
-            for ch in (FORCE_CHANNELS if c.target == "both" else (c.target,)):
-                corr[ch]["offset"] += th
-        elif c.kind == "force_scale":
-            corr[c.target]["kappa"] += th
-        elif c.kind == "force_delay":
-            corr[c.target]["delay"] += th
+        p, corr = c.kind.correct(model, p, corr, c.target, float(th))
     return p, corr
 
 
 def _theta_bounds(c: Cause, pipe) -> tuple[float, float]:
-    """The physically plausible range of a cause's parameter (offsets are unbounded)."""
-    if c.kind == "parameter_error":
-        return -0.6, 1.5
-    if c.kind == "force_scale":
-        return -0.5, 1.0
-    if c.kind == "force_delay":
-        lim = 0.5 * pipe.trim * pipe.h
-        return -lim, lim
-    return -math.inf, math.inf
+    return c.kind.bounds(pipe)
 
 
 def _clip_theta(causes, theta, pipe):
@@ -93,35 +345,24 @@ def _at_bound(c: Cause, theta: float, pipe) -> bool:
     return theta <= lo + tol or theta >= hi - tol
 
 
-
-#: familywise significance level of the cause tests (Bonferroni over the candidates)
-ALPHA = 1e-3
-#: causes smaller than these are not worth reporting (far below any sensor's specification)
-PRACTICAL = {"force_offset": 0.05, "force_scale": 2e-4, "force_delay": None, "parameter_error": 2e-4}
-
-
 def _practical(c: Cause, pipe) -> float:
-    thr = PRACTICAL[c.kind]
-    return 1e-3 * pipe.h if thr is None else thr
+    return c.kind.floor(pipe)
 
 
-def _candidates(pipe) -> list[Cause]:
+def _candidates(pipe, kinds=VEHICLE_CAUSES) -> list[Cause]:
+    """Every candidate of ``kinds``, force-channel kinds per channel first, then ``both``, then
+    the parameters."""
     out = []
     for ch in FORCE_CHANNELS:
-        out += [Cause("force_offset", ch), Cause("force_scale", ch), Cause("force_delay", ch)]
-    # the same offset on both forces: indistinguishable from a mass error without heave data
-    out.append(Cause("force_offset", "both"))
-    # g is not a candidate: gravity is known to 0.3 % anywhere on Earth, while its signature
-    # (the weight of every body) is an equal offset on both forces plus a small dynamic part, so as
-    # a candidate it only stood in for force offsets (measured on independent runs: offsets on f1
-    # and f2 reported as one offset and a g error of x1.009)
-    for key in MODEL_KEYS:
-        if key != "g":
-            out.append(Cause("parameter_error", key))
+        out += [Cause(k, ch) for k in kinds if k.target_key == "channel" and ch in k.candidates()]
+    out += [Cause(k, "both") for k in kinds if k.target_key == "channel" and "both" in k.candidates()]
+    for k in kinds:
+        if k.target_key == "parameter":
+            out += [Cause(k, key) for key in k.candidates()]
     return out
 
 
-_BOTH = Cause("force_offset", "both")
+_BOTH = Cause(FORCE_OFFSET, "both")
 
 
 def _redundant(c: Cause, chosen) -> bool:
@@ -129,43 +370,24 @@ def _redundant(c: Cause, chosen) -> bool:
     on both forces next to an offset already chosen, or ``c`` itself."""
     if c in chosen:
         return True
-    return c == _BOTH and any(x.kind == "force_offset" for x in chosen)
+    return c == _BOTH and any(x.kind is FORCE_OFFSET for x in chosen)
 
 
-#: method component of a finding's 95 % interval, relative to the size of the effect (|theta|):
-#: the comparison computes a cause's signature by interpolation and finite differences on the
-#: sampled record and weighs it with the model's noise response, an error that grows with the
-#: effect and that the statistical half-width leaves out. Calibrated on the independent tuning
-#: sweep (design seed 31, never the committed seed) as the smallest value that puts 95 % of the
-#: true values of right findings inside their intervals:
-#: ``benchmarks/independent/calibrate_intervals.py`` (docs/diagnosis.md, "Intervals").
-METHOD_REL = {"force_offset": 0.0, "force_scale": 0.0, "force_delay": 0.0, "parameter_error": 0.0,
-              "force_noise": 0.05}
-
-
-def method_half(kind: str, theta: float) -> float:
+def method_half(kind, theta: float) -> float:
     """The method component of the 95 % half-width, in theta units."""
-    return 1.96 * METHOD_REL[kind] * abs(theta)
+    k = kind_named(kind) if isinstance(kind, str) else kind
+    return 1.96 * k.method_rel * abs(theta)
 
 
 def _finding_for(c: Cause, theta: float, se: float, floor: float = 0.0) -> dict:
     """The finding with its 95 % interval: the statistical half-width 1.96 se combined with the
     comparison's numerical resolution ``floor`` (in theta units; without noise se is only the
     discretisation floor of the residual, which says nothing about the estimate's own error)
-    and the method component (``METHOD_REL``), in quadrature."""
+    and the method component (``method_rel``), in quadrature."""
     est = c.to_estimate(theta)
     half = math.hypot(1.96 * se, floor, method_half(c.kind, theta))
-    lo_t, hi_t = theta - half, theta + half
-    if c.kind == "force_scale":
-        # estimate = 1 / (1 + theta): decreasing
-        lo, hi = c.to_estimate(min(hi_t, 10.0)), c.to_estimate(max(lo_t, -0.99))
-    else:
-        lo, hi = c.to_estimate(lo_t), c.to_estimate(hi_t)
-    out = {"cause": c.kind}
-    if c.kind == "parameter_error":
-        out["parameter"] = c.target
-    else:
-        out["channel"] = c.target
+    lo, hi = c.kind.interval(theta, half)
+    out = {"cause": c.kind.name}
+    out.update(c.target_json())
     out.update({"estimate": float(est), "unit": c.unit(), "interval": [float(lo), float(hi)]})
     return out
-

@@ -186,7 +186,7 @@ def unconfirmed_findings(prob: _Problem, sel0: Selection, model: dict, sigma: fl
     res_all = prob.pipe.residuals(p0, corr0)
     out = cause_findings(prob, sel0, model, res_all, sigma, only=set(reasons))
     for f in out:
-        c = next(c for c in reasons if c.kind == f["cause"]
+        c = next(c for c in reasons if c.kind.name == f["cause"]
                  and c.target in (f.get("channel"), f.get("parameter"), "both"))
         f["confirmed"] = False
         f["evidence"] = f["evidence"].rstrip(".") + "; " + reasons[c] + "."

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...io._csvio import VehicleRun
-from ._causes import FORCE_CHANNELS
+from ...io._corrections import FORCE_CHANNELS, NO_CORRECTION
 from ._detectors import (MOTION_COLUMN, TOP_BAND, _welch, noise_fit, transfer_psd, welch_segment, welch_segments,
                          written_noise_sigma)
 from ._residuals import ResidualPipeline
@@ -38,7 +38,7 @@ FLOOR_FACTOR = 3.0
 #: errors (on clean runs with 20 N of force noise the fit gives it 10 % of the top band by chance)
 MOTION_NOISE_MIN_Z = 4.0
 
-_ZERO = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
+_ZERO = NO_CORRECTION
 
 
 def simulated_travel(pipe: ResidualPipeline, p: dict) -> dict[str, np.ndarray]:

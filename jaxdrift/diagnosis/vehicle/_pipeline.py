@@ -5,7 +5,8 @@ from __future__ import annotations
 from ...io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ...io._timebase import run_block
 from ._adequacy import assess_model_form
-from ._causes import FORCE_CHANNELS, _apply
+from ...io._corrections import NO_CORRECTION
+from ._causes import FORCE_NOISE, _apply
 from ._confirm import confirm_by_resimulation, confirm_corrections, unconfirmed_findings
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
@@ -28,6 +29,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     model = dict(DEFAULT_MODEL if model is None else model)
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
+    pipe = prob.pipe  # with the channels it compares band-limited
     sel0 = _select(prob, log=log)
     sel, held_out = confirm_corrections(prob, sel0, log)
     resim_out = []
@@ -37,8 +39,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     dynamic = len(fit.r) > 2
 
     # residuals before / after (physical units)
-    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
-    res0 = pipe.residuals(model, zero)
+    res0 = pipe.residuals(model, NO_CORRECTION)
     p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
     res1 = pipe.residuals(p_ext, corr_ext)
 
@@ -47,21 +48,18 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     notes = list(noise["notes"])
 
     # findings: the confirmed causes (in the extended model), then those a check did not confirm
-    corrections = {ch: {"offset": float(corr_ext[ch]["offset"]),
-                        "scale": float(1.0 / (1.0 + corr_ext[ch]["kappa"])),
-                        "delay": float(corr_ext[ch]["delay"])} for ch in FORCE_CHANNELS}
+    corrections = corr_ext
     findings = cause_findings(prob, sel, model, res1, sigma)
     for f in findings:
         f["confirmed"] = True
     findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out)
     if not dynamic and sigma > 0:
-        findings += static_findings(res0, sigma, corrections)
+        static, corrections = static_findings(res0, sigma, corrections)
+        findings += static
     if noise["found"]:
         src = noise["source"]
-        findings.append({"cause": "force_noise", "estimate": float(sigma), "unit": "N",
-                         "interval": [float(noise["lo"]), float(noise["hi"])],
-                         "estimate_kind": noise["kind"],
-                         "evidence": src[0].upper() + src[1:] + "."})
+        findings.append(FORCE_NOISE.finding(sigma, noise["lo"], noise["hi"], noise["kind"],
+                                            src[0].upper() + src[1:] + "."))
     joint_intervals(findings)
     # model adequacy and the nonlinear suspension (_adequacy): its findings lead, as the linear
     # findings hold only if the model's form does; no other finding changes
@@ -86,7 +84,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         "kind": "vehicle",
         "simulation_error": sim_err,
         "findings": findings,
-        "extended_model": {"parameters": params_ext, "corrections": corrections,
+        "extended_model": {"parameters": params_ext, "corrections": corrections.to_json(),
                            **({"nonlinear": form["correction"]} if form["correction"] else {})},
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,

@@ -38,79 +38,30 @@ class _Problem:
             else:
                 self.rows[nm] = n - K - self.offset[nm]
         #: leading entries of a channel left out of the rows (the start of a band-limited channel,
-        #: see limit_bands): row j of channel nm is its entry j + skip[nm]
+        #: see choose_bands): row j of channel nm is its entry j + skip[nm]
         self.skip = {nm: 0 for nm in self.names}
         self._ir_cache: dict = {}
         self.ir, self.noise_std = self.impulse_responses(model)
-        self.limit_bands()
-
-    #: share of the force-noise power that sensor noise on the measured motion may add to a
-    #: residual channel before the channel is low-passed
-    MOTION_NOISE_SHARE = 0.01
-
-    def limit_bands(self):
-        """Low-pass the residual channels whose measured motion carries sensor noise.
-
-        The residuals differentiate the measured motion (``I beta''``, ``m3 z3''``, ``d s'``), so
-        white sensor noise of standard deviation s reaches them with a power spectrum growing as
-        (2 pi f)^4 (or (2 pi f)^2), while force noise reaches them through the model and fades at
-        high frequencies. Even 1e-6 rad of pitch noise (a CSV written with 6 decimals) swamps
-        the enforced moment above a few tens of Hz. The sensor noise is measured in the top band
-        of each residual channel (``_motion_noise.measure_motion_noise``), the force noise from the forces' 4th
-        differences; each channel keeps the band where the sensor noise adds at most
-        ``MOTION_NOISE_SHARE`` of the force-noise power. Clean motion records keep the full band
-        (no filter).
-        """
-        pipe = self.pipe
-        run = pipe.run
-        h = pipe.h
-        sig_f = max(_force_hf_noise(run)[0], NOISE_MIN_N)
         self.motion_noise, self._motion_resp, shapes = measure_motion_noise(self)
-        p = self.model
-        gains = {"moment": lambda w: p["I"] * w * w, "heave": lambda w: p["m3"] * w * w,
-                 "spring1": lambda w: np.abs(p["k3"] + 1j * w * p["d3"]),
-                 "spring2": lambda w: np.abs(p["k4"] + 1j * w * p["d4"])}
-        band = {}
-        for nm in self.names:
-            if nm not in gains:
-                continue
-            col, gain = MOTION_COLUMN[nm], gains[nm]
-            sig_m = self.motion_noise.get(col, {}).get("sigma", 0.0)
-            others = [(c2, self.motion_noise[c2]["sigma"]) for (c2, nm2) in shapes
-                      if nm2 == nm and c2 != col and self.motion_noise.get(c2, {}).get("sigma", 0.0) > 0]
-            if sig_m <= 0 and not others:
-                continue
-            nfft = 1 << int(np.ceil(np.log2(max(4 * len(self.ir[(nm, "f1")][0]), 1024))))
-            Hf = sum(np.abs(np.fft.rfft(self.ir[(nm, ch)][0], nfft)) ** 2 for ch in FORCE_CHANNELS)
-            f = np.fft.rfftfreq(nfft, h)
-            motion = sig_m ** 2 * gain(2 * np.pi * f) ** 2
-            for c2, s2 in others:
-                # noise found on another column reaching this channel (pitch noise moves the spring
-                # points): its PSD per unit variance against the force noise's, |H|^2 2/fs
-                fw, G = shapes[(c2, nm)]
-                motion = motion + s2 ** 2 * np.interp(f, fw, G) * (h / 2.0)
-            bad = motion > self.MOTION_NOISE_SHARE * sig_f ** 2 * Hf
-            bad[0] = False
-            if not np.any(bad):
-                continue
-            fc = float(f[np.argmax(bad)])
-            if fc >= 0.45 / h:
-                continue
-            fc = max(fc, 1.0)
-            band[nm] = (fc, scipy.signal.butter(8, fc, fs=1.0 / h, output="sos"))
+        band = choose_bands(pipe, model, self.names, self.ir, self.motion_noise, shapes,
+                            self.MOTION_NOISE_SHARE)
         if band:
-            pipe.band = band
+            # the comparison from here on: the same pipeline with these channels low-passed
+            self.pipe = pipe.with_band(band)
             # The start of a low-passed channel carries the filter's start-up and the end effects
             # of the motion's derivatives, spread over about 1/fc: measured (pitch, heave and
             # spring travel with 3e-5 of white noise, 500 Hz) up to 10x the residual's rms over
             # the first 0.4 s, enough to fit spurious causes. Those rows are left out.
             for nm, (fc, _) in band.items():
-                s = int(math.ceil(1.5 / (fc * h)))
-                s = min(s, self.rows[nm] // 4)
+                s = min(int(math.ceil(1.5 / (fc * pipe.h))), self.rows[nm] // 4)
                 self.skip[nm] = s
                 self.rows[nm] -= s
             self._ir_cache.clear()
             self.ir, self.noise_std = self.impulse_responses(self.model)
+
+    #: share of the force-noise power that sensor noise on the measured motion may add to a
+    #: residual channel before the channel is low-passed
+    MOTION_NOISE_SHARE = 0.01
 
     #: a channel whose low band holds more than this share of sensor noise (as found on the
     #: measured motion) is left out of the force-noise estimate where others are left
@@ -367,3 +318,54 @@ def _gauss_newton(prob: _Problem, causes, theta0, iters=6) -> Fit:
         X = prob.jacobian(causes, theta)
     return Fit(list(causes), theta, r, res, float(r @ r), X)
 
+
+def choose_bands(pipe: ResidualPipeline, model: dict, names, ir: dict, motion_noise: dict, shapes: dict,
+                 share: float) -> dict:
+    """The residual channels to low-pass because their measured motion carries sensor noise:
+    ``{channel: (cutoff Hz, sos)}`` (empty for clean motion records). Pure.
+
+    The residuals differentiate the measured motion (``I beta''``, ``m3 z3''``, ``d s'``), so
+    white sensor noise of standard deviation s reaches them with a power spectrum growing as
+    (2 pi f)^4 (or (2 pi f)^2), while force noise reaches them through the model and fades at
+    high frequencies. Even 1e-6 rad of pitch noise (a CSV written with 6 decimals) swamps
+    the enforced moment above a few tens of Hz. The sensor noise is measured in the top band
+    of each residual channel (``_motion_noise.measure_motion_noise``), the force noise from the
+    forces' 4th differences; each channel keeps the band where the sensor noise adds at most
+    ``share`` of the force-noise power.
+    """
+    run = pipe.run
+    h = pipe.h
+    sig_f = max(_force_hf_noise(run)[0], NOISE_MIN_N)
+    p = model
+    gains = {"moment": lambda w: p["I"] * w * w, "heave": lambda w: p["m3"] * w * w,
+             "spring1": lambda w: np.abs(p["k3"] + 1j * w * p["d3"]),
+             "spring2": lambda w: np.abs(p["k4"] + 1j * w * p["d4"])}
+    band = {}
+    for nm in names:
+        if nm not in gains:
+            continue
+        col, gain = MOTION_COLUMN[nm], gains[nm]
+        sig_m = motion_noise.get(col, {}).get("sigma", 0.0)
+        others = [(c2, motion_noise[c2]["sigma"]) for (c2, nm2) in shapes
+                  if nm2 == nm and c2 != col and motion_noise.get(c2, {}).get("sigma", 0.0) > 0]
+        if sig_m <= 0 and not others:
+            continue
+        nfft = 1 << int(np.ceil(np.log2(max(4 * len(ir[(nm, "f1")][0]), 1024))))
+        Hf = sum(np.abs(np.fft.rfft(ir[(nm, ch)][0], nfft)) ** 2 for ch in FORCE_CHANNELS)
+        f = np.fft.rfftfreq(nfft, h)
+        motion = sig_m ** 2 * gain(2 * np.pi * f) ** 2
+        for c2, s2 in others:
+            # noise found on another column reaching this channel (pitch noise moves the spring
+            # points): its PSD per unit variance against the force noise's, |H|^2 2/fs
+            fw, G = shapes[(c2, nm)]
+            motion = motion + s2 ** 2 * np.interp(f, fw, G) * (h / 2.0)
+        bad = motion > share * sig_f ** 2 * Hf
+        bad[0] = False
+        if not np.any(bad):
+            continue
+        fc = float(f[np.argmax(bad)])
+        if fc >= 0.45 / h:
+            continue
+        fc = max(fc, 1.0)
+        band[nm] = (fc, scipy.signal.butter(8, fc, fs=1.0 / h, output="sos"))
+    return band

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import scipy.stats
 
-from ._causes import FORCE_CHANNELS, Cause, _apply, _finding_for, _practical, method_half
+from ...io._corrections import NO_CORRECTION, Corrections
+from ._causes import FORCE_CHANNELS, FORCE_NOISE, FORCE_OFFSET, PARAMETER_ERROR, Cause, _apply, _finding_for, _practical
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_white,
                          lowband_cutoff, written_digits)
 from ._problem import _Problem
@@ -46,8 +47,8 @@ def _alternatives_json(alts) -> list[dict]:
     out = []
     for a, est, iv in alts:
         for tgt in (FORCE_CHANNELS if a.target == "both" else (a.target,)):
-            d = {"parameter": tgt} if a.kind == "parameter_error" else {"channel": tgt}
-            d["cause"] = a.kind
+            d = a.target_json(tgt)
+            d["cause"] = a.kind.name
             if est is not None:
                 d["estimate"] = est
             if iv is not None:
@@ -57,14 +58,7 @@ def _alternatives_json(alts) -> list[dict]:
 
 
 def _describe(c: Cause, est: float) -> str:
-    if c.kind == "force_offset":
-        where = "both forces" if c.target == "both" else c.target
-        return f"an offset of {est:+.4g} N on {where}"
-    if c.kind == "force_scale":
-        return f"a scale of {est:.5g} on {c.target}"
-    if c.kind == "force_delay":
-        return f"a delay of {est * 1e3:+.4g} ms on {c.target}"
-    return f"{c.target} = {est:.5g} x the model value"
+    return c.kind.describe(c.target, est)
 
 
 _CHANNEL_WORDS = {"moment": "enforced moment", "heave": "vertical enforced force",
@@ -141,7 +135,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
     kind = "estimate"  # or "upper_bound": a level the noise cannot exceed, interval from 0
     if dynamic:
         sigma, with_motion, dof = prob.lowband_levels(
-            sel.fit.r, {ch: 1.0 + corr_ext[ch]["kappa"] for ch in FORCE_CHANNELS},
+            sel.fit.r, {ch: corr_ext[ch].gain for ch in FORCE_CHANNELS},
             prob.impulse_responses(p_ext)[0])
         lo, hi = _chi2_sigma_interval(sigma, dof)
         found = sigma > NOISE_MIN_N  # decided on the low band, before a smaller bound replaces it
@@ -226,7 +220,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
                     f"{with_motion:.3g} N, the upper end of the interval")
     # the method component (the fitted noise response is only as right as the fitted model),
     # added in quadrature to each side; an upper bound keeps its interval from zero
-    m = method_half("force_noise", sigma)
+    m = FORCE_NOISE.method_half(sigma)
     hi = sigma + math.hypot(hi - sigma, m)
     if kind == "upper_bound":
         lo = 0.0
@@ -263,7 +257,7 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
         if alts:
             ev += "; the data cannot tell it from " + ", ".join(
                 _describe(a, e) if e is not None else a.label for a, e, _ in alts)
-        targets = [c.target] if not (c.kind == "force_offset" and c.target == "both") else list(FORCE_CHANNELS)
+        targets = [c.target] if not (c.kind is FORCE_OFFSET and c.target == "both") else list(FORCE_CHANNELS)
         for tgt in targets:
             f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i],
                              _practical(c, pipe))
@@ -278,33 +272,34 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
     return findings
 
 
-def static_findings(res0: "Residuals", sigma: float, corrections: dict) -> list[dict]:
-    """Forces only: the static load at the first sample is all there is to check. Sets the
-    offsets of ``corrections`` in place."""
+def static_findings(res0: "Residuals", sigma: float,
+                    corrections: Corrections) -> tuple[list[dict], Corrections]:
+    """Forces only: the static load at the first sample is all there is to check. The findings,
+    and ``corrections`` with their offsets."""
     findings = []
     st = res0.channels["static"]
     for i, ch in enumerate(FORCE_CHANNELS):
         z = float(st[i] / sigma)
         if abs(z) > 3.5:  # two tests, well beyond the 95 % level: a static load error
             findings.append({
-                "cause": "force_offset", "channel": ch, "estimate": float(st[i]), "unit": "N",
+                "cause": FORCE_OFFSET.name, "channel": ch, "estimate": float(st[i]), "unit": FORCE_OFFSET.unit,
                 "interval": [float(st[i] - 1.96 * sigma), float(st[i] + 1.96 * sigma)],
                 "evidence": (f"at the first sample (vehicle at rest) {ch} differs from the "
                              f"model's static load by {st[i]:+.4g} N ({abs(z):.1f} noise "
                              f"levels); with forces alone this cannot be told from a mass or "
                              f"lever-arm error of the model."),
                 "z": abs(z),
-                "indistinguishable_from": [{"cause": "parameter_error", "parameter": k}
+                "indistinguishable_from": [{"cause": PARAMETER_ERROR.name, "parameter": k}
                                            for k in ("m3", "m1" if ch == "f1" else "m2", "a", "b", "g")]})
-            corrections[ch]["offset"] = float(st[i])
-    return findings
+            corrections = corrections.with_channel(ch, offset=float(st[i]))
+    return findings, corrections
 
 
 def identifiability_notes(prob: "_Problem", sel) -> list[str]:
     """Notes on parameters the run cannot see, sees weakly, and on band-limited channels."""
     run = prob.pipe.run
     notes = []
-    ni = sorted({c.target for c in sel.not_identifiable if c.kind == "parameter_error"})
+    ni = sorted({c.target for c in sel.not_identifiable if c.kind is PARAMETER_ERROR})
     if ni:
         notes.append("Not identifiable from these signals (they do not enter the force-driven "
                      "equations or the measured channels): " + ", ".join(ni) + ".")
@@ -333,7 +328,7 @@ def identifiability_notes(prob: "_Problem", sel) -> list[str]:
 
 
 def residual_gain(prob: "_Problem", res0: "Residuals", res1: "Residuals", fitted: bool,
-                  corrections: dict, dynamic: bool) -> dict:
+                  corrections: Corrections, dynamic: bool) -> dict:
     """RMS of the channel where the corrections show most (the enforced moment by default), before
     and after; forces only: the static load error."""
     names = prob.names
@@ -350,7 +345,7 @@ def residual_gain(prob: "_Problem", res0: "Residuals", res1: "Residuals", fitted
         gain["band_hz"] = [0.0, float(prob.pipe.band[main][0])]
     if not dynamic:
         st = res0.channels["static"]
-        gain["after"] = _rms([st[i] - corrections[ch]["offset"] for i, ch in enumerate(FORCE_CHANNELS)])
+        gain["after"] = _rms([st[i] - corrections[ch].offset for i, ch in enumerate(FORCE_CHANNELS)])
     return gain
 
 
@@ -359,14 +354,7 @@ def enforced_terms(prob: "_Problem", model: dict, res0: "Residuals") -> dict:
     term's size; where the channel is compared band-limited (sensor noise on the motion), the
     band-limited one too, labelled with its band."""
     pipe = prob.pipe
-    zero = {ch: {"offset": 0.0, "kappa": 0.0, "delay": 0.0} for ch in FORCE_CHANNELS}
-    full = res0
-    if pipe.band:
-        band, pipe.band = pipe.band, {}
-        try:
-            full = pipe.residuals(model, zero)
-        finally:
-            pipe.band = band
+    full = pipe.with_band({}).residuals(model, NO_CORRECTION) if pipe.band else res0
     fs2 = 0.5 / pipe.h
     out = {}
     for nm, key, inertia in (("moment", "enforced_moment", lambda: model["I"] * pipe.d2beta[:prob.rows["moment"]]),

@@ -9,6 +9,7 @@ samples for cubic-spline inputs (``_discretise``). The residual channels: ``mome
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass
 
@@ -17,6 +18,7 @@ import scipy.fft
 import scipy.signal
 from scipy.interpolate import CubicHermiteSpline, CubicSpline
 
+from ...io._corrections import Corrections
 from ...io._csvio import VehicleRun
 from ._causes import FORCE_CHANNELS
 from ._discretise import _deriv_coeffs, _discretise, _mm, _poly_coeffs, _run_recursion
@@ -60,7 +62,7 @@ class ResidualPipeline:
         self._spring_travel()
         self.channel_names = self._channel_names()
         #: per residual channel: (cutoff Hz, sos) of a zero-phase low-pass applied to it, set by
-        #: :meth:`_Problem.limit_bands` where the measured motion carries sensor noise
+        #: :func:`_problem.choose_bands` where the measured motion carries sensor noise
         self.band: dict = {}
 
     # ---- step 1: the prescribed motion on the fine grid
@@ -202,19 +204,27 @@ class ResidualPipeline:
             self._fspl_cache[key] = scipy.signal.sosfiltfilt(sos, f - f[0], padtype="even") + f[0]
         return self._fspl_cache[key]
 
-    def corrected_forces(self, corr: dict, smooth: bool = False) -> dict[str, np.ndarray]:
-        """True-force estimate on the fine grid: (measured(t + delay) - offset) * (1 + kappa)."""
+    def with_band(self, band: dict) -> "ResidualPipeline":
+        """The same pipeline with the channels of ``band`` compared low-passed (``{channel:
+        (cutoff Hz, sos)}``; the caches of the forces are shared, the original is unchanged)."""
+        new = copy.copy(self)
+        new.band = dict(band)
+        return new
+
+    def corrected_forces(self, corr: Corrections, smooth: bool = False) -> dict[str, np.ndarray]:
+        """True-force estimate on the fine grid (:class:`Corrections`), the delay applied as a
+        band-limited (FFT) shift."""
         out = {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
             key = ("spec", ch, smooth)
             if key not in self._fspl_cache:
                 self._fspl_cache[key] = self._padded_spectrum(self.measured(ch, smooth))
-            if c["delay"] == 0.0 and self.U == 1:
+            if c.delay == 0.0 and self.U == 1:
                 f = self.measured(ch, smooth)
             else:
-                f = self._resample(None, c["delay"] / self.h, spec=self._fspl_cache[key])
-            out[ch] = (f - c["offset"]) * (1.0 + c["kappa"])
+                f = self._resample(None, c.delay / self.h, spec=self._fspl_cache[key])
+            out[ch] = c.finish(f, self.tauf)
         return out
 
     # ---- the linear systems
@@ -311,20 +321,24 @@ class ResidualPipeline:
         coeffs, first = {}, {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
-            key = ("coef", ch, smooth, float(c["delay"]))
+            if c.drift != 0.0:
+                # a scale changing over the run is not a constant factor on the coefficients
+                f = self.corrected_forces(corr, smooth)[ch]
+                coeffs[ch], first[ch] = _poly_coeffs(CubicSpline(self.tauf, f)), float(f[0])
+                continue
+            key = ("coef", ch, smooth, float(c.delay))
             if key not in self._fspl_cache:
                 if sum(1 for k in self._fspl_cache if k[0] == "coef") > 16:
                     for k in [k for k in self._fspl_cache if k[0] == "coef"]:
                         del self._fspl_cache[k]
-                f = self.corrected_forces({ch: {"offset": 0.0, "kappa": 0.0, "delay": c["delay"]}
-                                           for ch in FORCE_CHANNELS}, smooth)[ch]
+                f = self.corrected_forces(corr.only_delay(), smooth)[ch]
                 self._fspl_cache[key] = (_poly_coeffs(CubicSpline(self.tauf, f)), float(f[0]))
             C, f0 = self._fspl_cache[key]
             C = C.copy()
-            C[0] -= c["offset"]
-            C *= 1.0 + c["kappa"]
+            C[0] -= c.offset
+            C *= c.gain
             coeffs[ch] = C
-            first[ch] = (f0 - c["offset"]) * (1.0 + c["kappa"])
+            first[ch] = (f0 - c.offset) * c.gain
         return coeffs, first
 
     def simulate(self, p: dict, forces: dict[str, np.ndarray] | None, *, linear_part_only=False,
@@ -450,7 +464,7 @@ class ResidualPipeline:
         of noise then named a mass error of 2.5).
 
         The channel is first tapered to zero over ``0.5 / fc`` at both ends (raised cosine; those
-        rows are inside the rows :meth:`_Problem.limit_bands` leaves out). Even padding still
+        rows are inside the rows :func:`_problem.choose_bands` leaves out). Even padding still
         starts the filter from the noise's value at the record's end: the differentiated sensor
         noise is 1e5-1e6 times the low band's level, and the filter's start from such a value rang
         through the whole record (measured: a van at 500 Hz with 7.7e-5 rad of pitch noise, enforced

@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.stats
 
-from ._causes import (_BOTH, ALPHA, FORCE_CHANNELS, Cause, _apply, _at_bound, _candidates,
+from ._causes import (_BOTH, ALPHA, FORCE_CHANNELS, FORCE_OFFSET, PARAMETER_ERROR, Cause, _apply, _at_bound, _candidates,
                       _finding_for, _practical, _redundant)
 from ._detectors import _force_hf_noise
 from ._problem import Fit, _gauss_newton, _Problem, _proj
@@ -57,7 +57,7 @@ def _systematic_rss(prob: _Problem, fit: "Fit", sigma2: float) -> float:
         if nm == "static":
             noise += prob.rows[nm]
             continue
-        v = sum((1.0 + corr[ch]["kappa"]) ** 2 * float(np.sum(ir[(nm, ch)][0] ** 2)) for ch in FORCE_CHANNELS)
+        v = sum(corr[ch].gain ** 2 * float(np.sum(ir[(nm, ch)][0] ** 2)) for ch in FORCE_CHANNELS)
         noise += prob.rows[nm] * v / prob.noise_std[nm] ** 2
     base = sum(prob.rows[nm] for nm in prob.names)
     return fit.rss + sigma2 * max(base - noise, 0.0)
@@ -69,7 +69,7 @@ def _normalise(prob: _Problem, fit: "Fit") -> "Fit":
     causes = list(fit.causes)
     if _BOTH not in causes:
         return fit
-    singles = [c for c in causes if c.kind == "force_offset" and c != _BOTH]
+    singles = [c for c in causes if c.kind is FORCE_OFFSET and c != _BOTH]
     if not singles:
         return fit
     ib = causes.index(_BOTH)
@@ -77,7 +77,7 @@ def _normalise(prob: _Problem, fit: "Fit") -> "Fit":
     theta = np.array(fit.theta, dtype=float)
     i1 = causes.index(singles[0])
     theta[i1] += theta[ib]
-    causes[ib] = Cause("force_offset", other)
+    causes[ib] = Cause(FORCE_OFFSET, other)
     return _gauss_newton(prob, causes, theta)
 
 
@@ -231,7 +231,7 @@ def _forward(prob: _Problem, base: Fit, active, Jc, crit: float, max_causes: int
         alternatives[c_best] = _step_alternatives(prob, f_best, gain, refined, scores, sigma2)
         chosen.append(c_best)
         fit = f_best
-        if _BOTH in chosen and len([c for c in chosen if c.kind == "force_offset"]) > 1:
+        if _BOTH in chosen and len([c for c in chosen if c.kind is FORCE_OFFSET]) > 1:
             # {equal offsets, offset on f1} is {offsets on f1 and f2}: report it so
             alts_b = alternatives.pop(_BOTH, [])
             fit = _normalise(prob, fit)
@@ -313,7 +313,7 @@ def _weak_identifiability(prob: _Problem, active, chosen, Jc, sigma2: float) -> 
     level."""
     weak = {}
     for c in active:
-        if c.kind != "parameter_error" or c in chosen:
+        if c.kind is not PARAMETER_ERROR or c in chosen:
             continue
         col = Jc.get(c)
         if col is None:
@@ -342,7 +342,7 @@ def _subset_screen(base_r: np.ndarray, active, Jc, size: int, top: int = 3) -> l
     out = []
     for S in itertools.combinations(range(len(cands)), size):
         if size > 1 and any(cands[i] == _BOTH for i in S) and \
-                sum(cands[i].kind == "force_offset" for i in S) > 1:
+                sum(cands[i].kind is FORCE_OFFSET for i in S) > 1:
             continue  # equal offsets next to a single offset: two channel offsets, screened as such
         GS = G[np.ix_(S, S)]
         if np.linalg.cond(GS) > 1e10:
@@ -370,13 +370,13 @@ def _union(fit: Fit, extra: list) -> tuple[list, np.ndarray]:
     the channel offsets (the span, and so the test, is the same)."""
     causes = list(fit.causes) + list(extra)
     theta = np.append(fit.theta, np.zeros(len(extra)))
-    if _BOTH in causes and any(c.kind == "force_offset" and c != _BOTH for c in causes):
+    if _BOTH in causes and any(c.kind is FORCE_OFFSET and c != _BOTH for c in causes):
         ib = causes.index(_BOTH)
         tb = theta[ib]
         causes.pop(ib)
         theta = np.delete(theta, ib)
         for ch in FORCE_CHANNELS:
-            c = Cause("force_offset", ch)
+            c = Cause(FORCE_OFFSET, ch)
             if c in causes:
                 theta[causes.index(c)] += tb
             else:

@@ -1,0 +1,144 @@
+"""The corrections of measured input channels: one frozen record and one convention.
+
+A force channel's correction (``docs/measured-data.md``)::
+
+    true(t) = (measured(t + delay) - offset) * gain / (1 + drift * (t - t_mid)),   gain = 1 / scale
+
+``t_mid`` is the middle of the run (``(t[0] + t[-1]) / 2``), so a drift of the scale over the run
+leaves its mean scale in ``scale``. A gyro channel's correction is ``true = (measured - bias) /
+scale``. Reports carry the JSON form (``offset``, ``scale``, ``delay``, and ``drift`` where it is
+not zero; ``bias``, ``scale`` for gyros); everything else (the diagnosis, durability, the series
+output, the campaign, the generators) uses these records.
+
+Where the measured signal is shifted by ``delay`` is the caller's named choice: ``"linear"``
+interpolation between samples (the series output, durability, the generators), or a band-limited
+(FFT) shift done by the diagnosis's own resampler, which then calls :meth:`ForceCorrection.finish`
+on the shifted samples.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+FORCE_CHANNELS = ("f1", "f2")
+_JSON_KEYS = ("offset", "scale", "delay")
+
+
+@dataclass(frozen=True)
+class ForceCorrection:
+    """One force channel: ``offset`` [N], ``gain`` = 1/scale, ``delay`` [s], ``drift`` [1/s]."""
+
+    offset: float = 0.0
+    gain: float = 1.0
+    delay: float = 0.0
+    drift: float = 0.0
+
+    @property
+    def scale(self) -> float:
+        return 1.0 / self.gain
+
+    @property
+    def is_identity(self) -> bool:
+        return self == ForceCorrection()
+
+    def drift_factor(self, t) -> np.ndarray | float:
+        """``1 / (1 + drift (t - t_mid))`` on the run's times ``t`` (1.0 without drift)."""
+        if self.drift == 0.0:
+            return 1.0
+        t = np.asarray(t, dtype=float)
+        return 1.0 / (1.0 + self.drift * (t - 0.5 * (t[0] + t[-1])))
+
+    def finish(self, shifted: np.ndarray, t=None) -> np.ndarray:
+        """The true-force estimate from the measured samples already shifted by ``delay``
+        (``t``: their times, needed only with a drift)."""
+        out = (shifted - self.offset) * self.gain
+        return out if self.drift == 0.0 else out * self.drift_factor(t)
+
+    def apply(self, t, measured, delay_method: str = "linear") -> np.ndarray:
+        """The true-force estimate on the samples ``t`` of ``measured``. ``delay_method``:
+        ``"linear"`` interpolation, the end value held beyond the run."""
+        if delay_method != "linear":
+            raise ValueError(f"delay_method must be 'linear' here, got {delay_method!r}")
+        t = np.asarray(t, dtype=float)
+        f = np.asarray(measured, dtype=float)
+        if self.delay:
+            f = np.interp(t + self.delay, t, f)
+        return self.finish(f, t)
+
+    def to_json(self) -> dict:
+        out = {"offset": float(self.offset), "scale": float(1.0 / self.gain), "delay": float(self.delay)}
+        if self.drift != 0.0:
+            out["drift"] = float(self.drift)
+        return out
+
+    @classmethod
+    def from_json(cls, d: dict | None) -> "ForceCorrection":
+        d = d or {}
+        unknown = set(d) - set(_JSON_KEYS) - {"drift"}
+        if unknown:
+            raise ValueError(f"unknown correction keys {sorted(unknown)}; expected {list(_JSON_KEYS)} and 'drift'")
+        return cls(offset=float(d.get("offset", 0.0)), gain=1.0 / float(d.get("scale", 1.0)),
+                   delay=float(d.get("delay", 0.0)), drift=float(d.get("drift", 0.0)))
+
+
+@dataclass(frozen=True)
+class Corrections:
+    """The corrections of both force channels (``Corrections()`` corrects nothing)."""
+
+    f1: ForceCorrection = ForceCorrection()
+    f2: ForceCorrection = ForceCorrection()
+
+    def __getitem__(self, ch: str) -> ForceCorrection:
+        if ch not in FORCE_CHANNELS:
+            raise KeyError(ch)
+        return getattr(self, ch)
+
+    def items(self):
+        return ((ch, self[ch]) for ch in FORCE_CHANNELS)
+
+    def with_channel(self, ch: str, **changes) -> "Corrections":
+        """A copy with channel ``ch``'s fields changed (the record itself never changes)."""
+        return replace(self, **{ch: replace(self[ch], **changes)})
+
+    def only_delay(self) -> "Corrections":
+        """The same delays, nothing else (the shifted measured forces)."""
+        return Corrections(**{ch: ForceCorrection(delay=c.delay) for ch, c in self.items()})
+
+    def apply(self, t, forces: dict, delay_method: str = "linear") -> dict[str, np.ndarray]:
+        return {ch: c.apply(t, forces[ch], delay_method) for ch, c in self.items()}
+
+    def as_rows(self) -> np.ndarray:
+        """``(4, 2)``: offset, scale, delay, drift (rows) per force channel (columns)."""
+        return np.array([[c.offset for _, c in self.items()], [c.scale for _, c in self.items()],
+                         [c.delay for _, c in self.items()], [c.drift for _, c in self.items()]], dtype=float)
+
+    def to_json(self) -> dict:
+        return {ch: c.to_json() for ch, c in self.items()}
+
+    @classmethod
+    def from_json(cls, d: dict | None) -> "Corrections":
+        d = d or {}
+        return cls(**{ch: ForceCorrection.from_json(d.get(ch)) for ch in FORCE_CHANNELS})
+
+
+NO_CORRECTION = Corrections()
+
+
+@dataclass(frozen=True)
+class GyroCorrection:
+    """One gyro axis: ``true = (measured - bias) / scale``; ``bias_drift``: the intensity of the
+    bias's random walk [rad/s/sqrt(s)] where one was found (None: none)."""
+
+    bias: float = 0.0
+    scale: float = 1.0
+    bias_drift: float | None = None
+
+    def to_json(self) -> dict:
+        return {f.name: float(getattr(self, f.name)) for f in fields(self) if getattr(self, f.name) is not None}
+
+
+def corrections_json(corrections: dict) -> dict:
+    """A dict of records (and plain dicts) as the report's JSON."""
+    return {k: (v.to_json() if hasattr(v, "to_json") else v) for k, v in corrections.items()}
