@@ -67,6 +67,7 @@ def main(argv=None):
     rng = np.random.default_rng(a.seed)
     t0 = time.perf_counter()
     first_ok = covered = total = 0
+    misses = []
     for k in range(a.n):
         case = rg.draw_sweep_case(rng, chan_sets, noise=not a.no_noise)
         effects, fs, chans = case["effects"], case["fs"], case["channels"]
@@ -93,6 +94,7 @@ def main(argv=None):
         for m in sc["misses"]:
             extra = f" motion noise {level:.1e}" if a.motion_noise else ""
             print(f"run {k}: fs={fs:g} channels={chans}{extra}: {m}", flush=True)
+            misses.append({"run": k, "fs": fs, "channels": list(chans), "miss": str(m)})
     line = (f"{a.n} runs: true causes first in {first_ok}; {covered} of {total} assessable true values "
             f"inside their 95 % intervals ({100.0 * covered / max(total, 1):.0f} %)")
     print(line)
@@ -101,7 +103,7 @@ def main(argv=None):
 
         with open(a.json, "w") as fh:
             json.dump({"benchmark": "diagnose_sweep", "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
-                       "args": vars(a), "runs": a.n, "first": first_ok, "covered": covered, "total": total,
+                       "args": vars(a), "runs": a.n, "first": first_ok, "covered": covered, "total": total, "misses": misses,
                        "wall_s": time.perf_counter() - t0, "machine": machine_info()}, fh, indent=2)
             fh.write("\n")
 
