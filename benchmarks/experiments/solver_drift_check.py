@@ -1,9 +1,11 @@
 """Undisturbed force-driven half-car at the seed's loose and tight tolerances: jaxdrift DOPRI5 vs scipy RK45.
 
-Found (printed only, no result file; docs/paper-study.md "Solvers" has the study's own comparison):
-with undisturbed forces the pitch error at the seed's loose tolerance (rtol 1e-4) grows to tens of
-degrees by 30 s with scipy's RK45 as with jaxdrift's DOPRI5 (the same controller), while at tight
-tolerance both stay far below a degree: the loose-tolerance drift is integration error.
+Found (printed only, no result file; run 2026-12-02 on the loaded 2-core machine, about 19 minutes):
+at the seed's loose tolerance (rtol 1e-4) the undisturbed pitch error at 10, 20, 30 s is 0.20, 2.9,
+39 deg with scipy's RK45 and 0.43, 6.2, 75 deg with jaxdrift's DOPRI5 (the same controller; 1 deg
+passed at 16 s and 13 s); at rtol 1e-8 it is 0.0002, 0.003, 0.043 deg and 0.0009, 0.009, 0.12 deg,
+never reaching 1 deg: the loose-tolerance drift is integration error, and its size depends on the
+step sequence.
 
 Reproduce: python benchmarks/experiments/solver_drift_check.py   (prints steps and pitch error in degrees at 10, 20, 30 s)
 """
