@@ -99,6 +99,90 @@ def test_joint_fit_of_one_run_is_the_single_run_fit(tmp_path):
     assert fit.theta_n[0][0] == pytest.approx(single.theta[1], rel=1e-3)
 
 
+def test_joint_fit_weights_runs_by_their_noise(tmp_path):
+    """Two runs of one road, the second with 10 times the force noise: the joint estimate is the
+    inverse-variance combination of the two single-run fits (variance ``1 / (1/v0 + 1/v1)``, the
+    estimate their weighted mean), not an equal-weight stack, whose variance the noisy run would
+    decide (about 25 v0)."""
+    from jaxdrift.campaign._joint import JointFit
+    from jaxdrift.campaign._tasks import _problem
+    from jaxdrift.diagnosis.vehicle._causes import Cause
+    from jaxdrift.diagnosis.vehicle._problem import _gauss_newton
+    from jaxdrift.diagnosis.vehicle._select import _covariance
+    from jaxdrift.io import read_model
+
+    d = gc.draw_campaign(1, 8101, n_shared=1, durations=(6.0, 6.0), rates=(250,), effect_free=1.0,
+                         motion_noise_share=0.0)
+    loud = json.loads(json.dumps(d["cases"][0]))
+    loud.update(index=1, noise_seed=loud["noise_seed"] + 1)
+    for e in loud["effects"]:
+        if e["cause"] == "force_noise":
+            e["value"] *= 10.0
+    d["cases"].append(loud)
+    gc.write_campaign(d, str(tmp_path), progress=False)
+    model = read_model(str(tmp_path / "model.json"))
+    specs = [RunSpec(path=str(tmp_path / f"run_00{i}.csv")) for i in range(2)]
+    param = Cause("parameter_error", d["shared"][0]["parameter"])
+    est, var = [], []
+    for s in specs:
+        prob = _problem(s, model, True)
+        f = _gauss_newton(prob, [param], np.zeros(1), iters=12)
+        est.append(f.theta[0])
+        var.append(_covariance(prob, f.X, f.rss / (len(f.r) - 1))[0, 0])
+    assert var[1] > 50 * var[0], "the second run is not the noisier one: the test says nothing"
+    fit = JointFit(None, [[specs[0]], [specs[1]]], model, True, [param], [([], []), ([], [])], progress=False)
+    theta, state = fit.refit([param], [0.0], iters=12)
+    v = fit.covariance(state, 1)[0, 0]
+    v_iv = 1.0 / (1.0 / var[0] + 1.0 / var[1])
+    assert v == pytest.approx(v_iv, rel=0.05)
+    m_iv = v_iv * (est[0] / var[0] + est[1] / var[1])
+    assert abs(theta[0] - m_iv) <= 0.1 * math.sqrt(v_iv)
+    # the floor of the interval averages over the runs' effective number, here about 1
+    from jaxdrift.campaign._joint import check_consistency, consistency, joint_findings
+
+    cons = [check_consistency(e) for e in consistency([param], theta, state, JointFit.sigma2, ["r0", "r1"], [1, 1])]
+    n_eff = joint_findings([param], theta, np.array([[v]]), 2, {}, cons)[0]["effective_runs"]
+    assert 1.0 < n_eff < 1.1
+
+
+def test_joint_half_width_closed_form():
+    """The joint interval's half-width from a synthetic stack of runs: ``hypot(1.96 se sqrt(d),
+    floor / sqrt(n_eff))`` with ``d`` the over-dispersion and ``n_eff = (sum u)^2 / sum u^2`` of the
+    runs' weights; with two findings each side widened to the Sidak level."""
+    import scipy.stats
+
+    from jaxdrift.campaign._joint import check_consistency, joint_findings
+    from jaxdrift.diagnosis.vehicle._causes import Cause
+
+    rng = np.random.default_rng(3)
+    se = np.array([2e-5, 1e-4, 1e-4, 1e-4, 1e-4, 3e-3])
+    u = 1.0 / se ** 2
+    th = 0.03
+    # runs scattered 2.5 times their standard errors and the floor in quadrature: over-dispersed
+    est = 1.0 + th + 2.5 * np.hypot(se, 2e-4 / 1.96) * rng.standard_normal(se.size)
+    entry = {"parameter": "m1", "joint_estimate": 1.0 + th,
+             "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s), "weight": float(w)}
+                         for i, (e, s, w) in enumerate(zip(est, se, u))]}
+    cons = check_consistency(entry)
+    d = cons["chi2"] / cons["dof"]
+    assert d > 1.5, "not over-dispersed: the test says nothing about the factor"
+    c = Cause("parameter_error", "m1")
+    v = 1.0 / u.sum()
+    n_eff = u.sum() ** 2 / (u * u).sum()
+    f = joint_findings([c], np.array([th]), np.array([[v]]), 6, {"m1": 3}, [cons])[0]
+    half = math.hypot(1.96 * math.sqrt(v * d), 2e-4 / math.sqrt(n_eff))
+    assert f["effective_runs"] == pytest.approx(n_eff, rel=1e-12)
+    assert f["interval"] == pytest.approx([1.0 + th - half, 1.0 + th + half], abs=1e-12)
+    # equal weights: the effective number is the number of runs
+    flat = {**cons, "per_run": [{**r, "weight": 7.0} for r in cons["per_run"]]}
+    assert joint_findings([c], np.array([th]), np.array([[v]]), 6, {}, [flat])[0]["effective_runs"] == pytest.approx(6)
+    # two findings: each side widened by the ratio of the normal quantiles at 0.95^(1/2) and 0.95
+    k = Cause("parameter_error", "k4")
+    two = joint_findings([c, k], np.array([th, 0.01]), np.diag([v, v]), 6, {}, [cons, {**cons, "parameter": "k4"}])
+    q = scipy.stats.norm.ppf(0.5 + 0.5 * 0.95 ** 0.5) / scipy.stats.norm.ppf(0.975)
+    assert two[0]["interval"] == pytest.approx([1.0 + th - q * half, 1.0 + th + q * half], abs=1e-12)
+
+
 # ------------------------------------------------------------------- a campaign on Dask
 
 

@@ -139,7 +139,7 @@ def test_force_driven_solve_is_shared_between_lengths_and_padding_free():
     import generators_scipy as gs
     from jaxdrift.diagnosis.vehicle import _extend
     from jaxdrift.io._csvio import VehicleRun
-    from jaxdrift.models._halfcar import static_equilibrium
+    from jaxdrift.models._halfcar import force_driven_rhs, static_equilibrium
     from jaxdrift.models._params import HalfCarParams
     from jaxdrift.solvers._inputs import SampledSignal
     from jaxdrift.solvers._solve import solve_ode
@@ -160,7 +160,12 @@ def test_force_driven_solve_is_shared_between_lengths_and_padding_free():
         p = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(gs.SEED_MODEL))
         sig = SampledSignal(0.0, r.dt, np.stack([r["f1"], r["f2"]], axis=1))
         tau = jnp.asarray(r.t - r.t[0])
-        sol = solve_ode(_extend._force_rhs, static_equilibrium(p, "force"), 0.0, float(tau[-1]), saveat=tau,
+        def rhs(t, y, args):  # (A.3) written here, not the library's batched solve
+            pp, sg = args
+            f = sg(t)
+            return force_driven_rhs(t, y, pp, f[0], f[1])
+
+        sol = solve_ode(rhs, static_equilibrium(p, "force"), 0.0, float(tau[-1]), saveat=tau,
                         args=(p, sig), dt=r.dt / 4)
         ref = np.asarray(sol.ys)
     assert np.abs(ys[0][:, 3] - ref[:, 3]).max() < 1e-9 * np.abs(ref[:, 3]).max() + 1e-12

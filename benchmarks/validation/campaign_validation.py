@@ -5,7 +5,11 @@
     python benchmarks/validation/campaign_validation.py DIR OUT [--json benchmarks/results/campaign_validation.json]
 
 Per shared parameter: the joint estimate and interval, whether it holds the truth, the single-run
-intervals that name it (their median width) and the narrowing. Per run: whether its logger's sensor
+intervals that name it (their median width) and the narrowing; the joint half-width's terms (the
+sandwich standard error, the over-dispersion, the resolution floor over the effective number of
+runs, the joint-level factor) and the runs' own estimates (``joint.consistency``) against the
+truth: their scatter about it in units of their sandwich standard errors, alone and for the runs
+more precise than the single-run floor, and their inverse-variance mean. Per run: whether its logger's sensor
 effect (or its absence) is named right by the single-run diagnosis and by the campaign (the
 sensor effects against the joint vehicle). Named right: a finding of the true cause on the true
 channel, and no other sensor finding; for an effect-free logger, no sensor finding at all.
@@ -15,10 +19,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import platform
 import statistics
 import sys
+
+import scipy.stats
 
 SENSOR = ("force_offset", "force_scale", "force_delay")
 
@@ -30,7 +37,44 @@ def _named_right(findings, effect) -> bool:
     return sens == [(effect["cause"], effect["channel"])]
 
 
-def score(truth_dir: str, out_dir: str) -> dict:
+def _terms(f: dict, cov: dict) -> dict:
+    """The joint half-width's terms: ``half = factor x hypot(1.96 se sqrt(d), floor_half)``."""
+    j = cov["parameters"].index(f["parameter"])
+    k = len(cov["parameters"])
+    se = math.sqrt(max(cov["theta_covariance"][j][j] if isinstance(cov["theta_covariance"][0], list)
+                       else cov["theta_covariance"][j * k + j], 0.0))
+    d = f.get("overdispersion", 1.0)
+    each = f.get("interval_level", {}).get("each", 0.95)
+    factor = float(scipy.stats.norm.ppf(0.5 + 0.5 * each) / scipy.stats.norm.ppf(0.975))
+    half = 0.5 * (f["interval"][1] - f["interval"][0])
+    stat = 1.96 * se * math.sqrt(d)
+    return {"sandwich_se": se, "overdispersion": d, "statistical_half": stat,
+            "floor_half": math.sqrt(max((half / factor) ** 2 - stat ** 2, 0.0)),
+            "effective_runs": f.get("effective_runs"), "runs_informing": f.get("runs_informing"),
+            "joint_level_factor": factor, "half": half}
+
+
+def _own_vs_truth(entry: dict, true: float, floor_se: float) -> dict:
+    """The runs' own estimates of a shared parameter against the truth."""
+    pr = entry["per_run"]
+    z = [(r["estimate"] - true) / r["se"] for r in pr]
+    w = [1.0 / r["se"] ** 2 for r in pr]
+    prec = [zi for zi, r in zip(z, pr) if r["se"] < floor_se]
+    return {"runs": len(pr), "chi2_about_truth": sum(zi * zi for zi in z),
+            "se_min": min(r["se"] for r in pr), "se_median": statistics.median(r["se"] for r in pr),
+            "se_max": max(r["se"] for r in pr),
+            "precise_runs": len(prec), "precise_rms_z": math.sqrt(sum(x * x for x in prec) / len(prec)) if prec else None,
+            "precise_max_abs_z": max(abs(x) for x in prec) if prec else None,
+            "precise_median_abs_error": statistics.median(abs(r["estimate"] - true) for r in pr if r["se"] < floor_se)
+            if prec else None,
+            "inverse_variance_mean_error": sum(wi * (r["estimate"] - true) for wi, r in zip(w, pr)) / sum(w),
+            "inverse_variance_se": 1.0 / math.sqrt(sum(w)),
+            # the largest share of one run in the joint estimate's weights (where the campaign records them)
+            "largest_weight_share": (max(r["weight"] for r in pr) / sum(r["weight"] for r in pr)
+                                     if all("weight" in r for r in pr) else None)}
+
+
+def score(truth_dir: str, out_dir: str, floor: float = 2e-4) -> dict:
     truth = json.load(open(os.path.join(truth_dir, "truth.json")))
     doc = json.load(open(os.path.join(out_dir, "campaign.json")))
     loggers = {lg["id"]: lg["effect"] for lg in truth["loggers"]}
@@ -52,7 +96,11 @@ def score(truth_dir: str, out_dir: str) -> dict:
             row.update({"joint": f["estimate"], "joint_interval": f["interval"], "joint_width": w,
                         "contains_truth": f["interval"][0] <= true <= f["interval"][1],
                         "narrowing": (med / w) if med else None,
-                        "narrower_than_every_single": all(w < hi - lo for lo, hi in singles)})
+                        "narrower_than_every_single": all(w < hi - lo for lo, hi in singles),
+                        "half_width_terms": _terms(f, doc["joint"]["covariance"])})
+            cons = next((c for c in doc["joint"]["consistency"]["parameters"] if c["parameter"] == p), None)
+            if cons and cons.get("per_run"):
+                row["own_estimates_vs_truth"] = _own_vs_truth(cons, true, floor / 1.96)
         params.append(row)
     extra = [p for p in joint if p not in {e["parameter"] for e in truth["shared"]}]
     cases = {c["index"]: c for c in truth["cases"]}
@@ -93,6 +141,17 @@ def main(argv=None):
         print(f"{p['parameter']}: true {p['true']:.5f} joint {p.get('joint')} {p.get('joint_interval')} "
               f"contains {p['contains_truth']}; named by {p['named_by_single_runs']} runs, median single width "
               f"{p['median_single_width']}, narrowing x{p.get('narrowing')}")
+        if "half_width_terms" in p:
+            t = p["half_width_terms"]
+            print(f"   half {t['half']:.4g} = {t['joint_level_factor']:.4f} x hypot(1.96 se {t['sandwich_se']:.4g} x "
+                  f"sqrt(d {t['overdispersion']:.3g}) = {t['statistical_half']:.4g}, floor {t['floor_half']:.4g}; "
+                  f"effective runs {t['effective_runs']})")
+        if "own_estimates_vs_truth" in p:
+            o = p["own_estimates_vs_truth"]
+            print(f"   runs' own estimates: chi2 about the truth {o['chi2_about_truth']:.3g} on {o['runs']}; "
+                  f"{o['precise_runs']} runs with se below the floor: rms z {o['precise_rms_z']}, max |z| "
+                  f"{o['precise_max_abs_z']}; inverse-variance mean error {o['inverse_variance_mean_error']:.3g} "
+                  f"+- {o['inverse_variance_se']:.3g}")
     print("extra joint parameters:", res["joint_parameters_not_in_truth"])
     print("sensor effect named right: single-run", res["sensor_named_right"]["single_run"], "campaign",
           res["sensor_named_right"]["campaign"], "of", sum(1 for r in res["per_run"] if "single_right" in r))

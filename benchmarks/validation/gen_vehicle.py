@@ -351,6 +351,19 @@ def design(n: int, seed: int) -> list[dict]:
     return cases
 
 
+def _shuffled(plan: list, seed: int, design: str) -> list[dict]:
+    """The cases of a design's ``plan`` ((stratum, effects) pairs) in a seeded random order, each
+    with its own seed."""
+    rng = np.random.default_rng(seed)
+    order = rng.permutation(len(plan))
+    cases = []
+    for i, j in enumerate(order):
+        kind, what = plan[j]
+        cases.append({"index": i, "stratum": kind, "what": [list(w) for w in what],
+                      "seed": int(rng.integers(2**31)), "design": design})
+    return cases
+
+
 def design_nonlinear(n: int, seed: int, free_share: float = 0.4) -> list[dict]:
     """``n`` cases for the nonlinear suspension: ``free_share`` effect-free (half without, half
     with force noise), the rest 60 % one nonlinear effect (cycling through ``NONLINEAR``) and 40 %
@@ -361,14 +374,7 @@ def design_nonlinear(n: int, seed: int, free_share: float = 0.4) -> list[dict]:
     plan = [("clean", ())] * (n_free // 2) + [("noise", ())] * (n_free - n_free // 2)
     plan += [("single", (NONLINEAR[i % len(NONLINEAR)],)) for i in range(n_single)]
     plan += [("pair", (NONLINEAR[(3 * i + 1) % len(NONLINEAR)], SENSOR[i % len(SENSOR)])) for i in range(n_pair)]
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(len(plan))
-    cases = []
-    for i, j in enumerate(order):
-        kind, what = plan[j]
-        cases.append({"index": i, "stratum": kind, "what": [list(w) for w in what],
-                      "seed": int(rng.integers(2**31)), "design": "nonlinear"})
-    return cases
+    return _shuffled(plan, seed, "nonlinear")
 
 
 def design_gain_drift(n: int, seed: int, free_share: float = 0.2) -> list[dict]:
@@ -381,14 +387,7 @@ def design_gain_drift(n: int, seed: int, free_share: float = 0.2) -> list[dict]:
     plan = [("clean", ())] * (n_free // 2) + [("noise", ())] * (n_free - n_free // 2)
     plan += [("single", (GAIN_DRIFT[i % 2],)) for i in range(n_single)]
     plan += [("pair", (GAIN_DRIFT[i % 2], ("force_offset", ("f1", "f2")[(i // 2) % 2]))) for i in range(n_pair)]
-    rng = np.random.default_rng(seed)
-    order = rng.permutation(len(plan))
-    cases = []
-    for i, j in enumerate(order):
-        kind, what = plan[j]
-        cases.append({"index": i, "stratum": kind, "what": [list(w) for w in what],
-                      "seed": int(rng.integers(2**31)), "design": "gain_drift"})
-    return cases
+    return _shuffled(plan, seed, "gain_drift")
 
 
 def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500, 600, 1000, 1200, 2000),

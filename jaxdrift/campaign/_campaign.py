@@ -22,7 +22,7 @@ __all__ = ["campaign", "SCHEMA"]
 
 SCHEMA = "jaxdrift.campaign/1"
 #: bump when the joint fit changes what it returns for the same inputs (part of its cache key)
-JOINT_VERSION = 1
+JOINT_VERSION = 2
 
 
 def _read_cache(path):

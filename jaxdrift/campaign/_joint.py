@@ -6,7 +6,9 @@ _problem._Problem`: the same weighted residual rows, instruments, sandwich covar
 rows are stacked. Per logger group the nuisance directions are projected out (``Z = S - N N^+ S``,
 computed on the workers, :func:`._tasks.blocks_task`), so the shared step and covariance need only
 the small sums ``A = sum Z^T Z``, ``b = sum Z^T r`` and ``M = sum sigma_i^2 meat_i(Z_i)``:
-``delta = -A^-1 b``, ``cov = A^-1 M A^-1``. Runs are independent, so their meats add.
+``delta = -A^-1 b``, ``cov = A^-1 M A^-1``. Runs are independent, so their meats add. Each run's
+rows are weighted by ``1 / sigma_i`` (its own force-noise level): the runs' noise differs by
+orders of magnitude, and an unweighted stack lets the noisiest runs decide the variance.
 
 Selection is the single-run one lifted to the stack: forward steps by the linear score of each
 candidate, a joint Gauss-Newton refit, the Wald test at the single-run level (Bonferroni over the
@@ -27,7 +29,7 @@ from ..diagnosis.vehicle._causes import (ALPHA, FORCE_CHANNELS, FORCE_OFFSET, PA
 from ._executor import map_tasks
 from ._tasks import blocks_task, reselect_task
 
-__all__ = ["JointFit", "sensor_causes_of", "CONSISTENCY_LEVEL"]
+__all__ = ["JointFit", "sensor_causes_of", "effective_runs", "CONSISTENCY_LEVEL"]
 
 #: a parameter whose single-run estimates scatter beyond their intervals at this level is reported
 CONSISTENCY_LEVEL = 0.01
@@ -216,8 +218,10 @@ def _blocks_call(g, *, groups, theta_nuis, nuis, **kw):
 
 def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[dict]:
     """Per shared parameter: each run's own estimate (the other shared parameters held at the joint
-    values, the run's sensor effects projected out: one Gauss-Newton step from the joint value) and
-    its sandwich standard error; :func:`check_consistency` tests their scatter."""
+    values, the run's sensor effects projected out: one Gauss-Newton step from the joint value),
+    its sandwich standard error and its ``weight`` in the joint estimate (its weighted ``Z^T Z``:
+    the joint value is, to first order, the weight-averaged runs' own estimates);
+    :func:`check_consistency` tests their scatter."""
     _, _, _, _, outs, _ = state
     rows = [(r, p_of_run[g]) for g, o in enumerate(outs) for r in o["runs"]]
     out = []
@@ -230,7 +234,8 @@ def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[di
             var = sigma2_fn(r, p) * r["M"][j, j] / a ** 2
             if not (var > 0 and math.isfinite(var)):
                 continue
-            per_run.append({"run": name, "estimate": c.to_estimate(theta[j] - r["b"][j] / a), "se": math.sqrt(var)})
+            per_run.append({"run": name, "estimate": c.to_estimate(theta[j] - r["b"][j] / a), "se": math.sqrt(var),
+                            "weight": float(a)})
         out.append({"parameter": c.target, "joint_estimate": c.to_estimate(theta[j]), "per_run": per_run})
     return out
 
@@ -255,6 +260,13 @@ def check_consistency(entry: dict) -> dict:
             "consistent": pval >= CONSISTENCY_LEVEL and not bad, "disagreeing_runs": bad}
 
 
+def effective_runs(weights) -> float:
+    """Kish's effective number of runs of a weighted average: ``(sum u)^2 / sum u^2`` over the
+    positive weights (0 without any)."""
+    u = np.asarray([w for w in weights if w > 0 and math.isfinite(w)], float)
+    return float(u.sum() ** 2 / np.sum(u * u)) if u.size else 0.0
+
+
 def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: list[dict]) -> list[dict]:
     """The report's finding objects for the shared parameters, their 95 % intervals widened to
     hold jointly as in a single-run report.
@@ -263,9 +275,13 @@ def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: li
     part, ``1.96 se`` with the variance multiplied by the over-dispersion of the runs' own estimates
     (``max(1, chi2 / dof)`` of the consistency check: scatter between runs beyond their sandwich
     variances, whatever its cause, widens the joint interval by as much), and the comparison's
-    resolution, the single-run floor divided by the square root of the runs that inform the
-    parameter (the floor is a per-run resolution of the sampled comparison; the runs' rates, roads
-    and records differ, so it averages over them)."""
+    resolution, the single-run floor divided by the square root of the effective number of runs
+    that inform the parameter. The floor stands for a per-run resolution error of the sampled
+    comparison, independent between runs (their rates, roads and records differ); the joint
+    estimate is the runs' own estimates averaged with weights ``u_i`` (:func:`consistency`), so
+    such errors average down by ``sqrt(sum u_i^2) / sum u_i = 1 / sqrt(n_eff)``, ``n_eff = (sum
+    u_i)^2 / sum u_i^2`` (Kish), which is the number of runs when they weigh alike and near 1 when
+    one run carries the estimate."""
     from ..diagnosis._intervals import joint_intervals
 
     cons = {c["parameter"]: c for c in consistency}
@@ -273,13 +289,15 @@ def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: li
     for i, c in enumerate(shared):
         k = cons.get(c.target, {})
         n_inf = max(int(k.get("runs", n_runs)), 1)
+        n_eff = effective_runs([r.get("weight", 1.0) for r in k.get("per_run", [])]) or 1.0
         disp = max(1.0, float(k.get("chi2", 0.0)) / max(float(k.get("dof", 1)), 1.0))
         se = math.sqrt(max(cov[i, i], 0.0) * disp)
-        f = _finding_for(c, theta[i], se, _practical(c, None) / math.sqrt(n_inf))
+        f = _finding_for(c, theta[i], se, _practical(c, None) / math.sqrt(n_eff))
         z = abs(theta[i]) / se if se > 0 else math.inf
         f["z"] = float(z)
         f["overdispersion"] = float(disp)
         f["runs_informing"] = n_inf
+        f["effective_runs"] = float(n_eff)
         nm = named.get(c.target, 0)
         f["evidence"] = (f"fitted jointly over the {n_runs} runs (each logger's sensor effects as nuisance "
                          f"parameters): {c.to_estimate(theta[i]):.5g}, z = {z:.3g}; {nm} of the {n_runs} "

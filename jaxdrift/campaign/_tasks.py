@@ -101,13 +101,28 @@ def diagnose_task(spec, *, model: dict, model_given: bool, model_desc: dict, cac
 # ------------------------------------------------------------------------ the joint fit's blocks
 
 
-def _stack_eval(probs, causes, theta):
-    return [p.eval(causes, theta)[0] for p in probs]
+def _stack_eval(probs, causes, theta, scale=None):
+    scale = [1.0] * len(probs) if scale is None else scale
+    return [s * p.eval(causes, theta)[0] for p, s in zip(probs, scale)]
 
 
-def _fit_nuisance(probs, causes, theta, idx_n, iters: int = 5):
+def run_scales(probs, causes, theta) -> list[float]:
+    """Per run ``1 / sigma_i``: the inverse of its force-noise level ``sigma_i^2 = RSS_i / (rows_i
+    - p)`` at ``theta`` (the level its sandwich variance uses). Each run's rows are multiplied by
+    it, so that the stacked estimating equations weight the runs by ``1 / sigma_i^2`` (generalised
+    least squares over independent runs of unequal noise); a run without residual keeps weight 1."""
+    out = []
+    for p in probs:
+        r = p.eval(causes, theta)[0]
+        s2 = float(r @ r) / max(len(r) - len(causes), 1)
+        out.append(1.0 / math.sqrt(s2) if s2 > 0 and math.isfinite(s2) else 1.0)
+    return out
+
+
+def _fit_nuisance(probs, causes, theta, idx_n, iters: int = 5, scale=None):
     """Gauss-Newton (instrumental, as the single-run fit) over the nuisance entries ``idx_n`` of
-    ``theta``, the shared entries held: one logger's sensor effects over its runs."""
+    ``theta``, the shared entries held: one logger's sensor effects over its runs (each run's rows
+    multiplied by its ``scale``)."""
     from ..diagnosis.vehicle._causes import _clip_theta
     from ..diagnosis.vehicle._problem import _proj
 
@@ -115,9 +130,10 @@ def _fit_nuisance(probs, causes, theta, idx_n, iters: int = 5):
     if not idx_n:
         return theta
     pipe = probs[0].pipe
-    r = np.concatenate(_stack_eval(probs, causes, theta))
+    scale = [1.0] * len(probs) if scale is None else scale
+    r = np.concatenate(_stack_eval(probs, causes, theta, scale))
     for _ in range(iters):
-        N = np.vstack([p.jacobian(causes, theta, which=idx_n) for p in probs])
+        N = np.vstack([s * p.jacobian(causes, theta, which=idx_n) for p, s in zip(probs, scale)])
         step, *_ = np.linalg.lstsq(N, -r, rcond=None)
         q0 = _proj(N, r)
         lam, ok = 1.0, False
@@ -125,7 +141,7 @@ def _fit_nuisance(probs, causes, theta, idx_n, iters: int = 5):
             th = theta.copy()
             th[idx_n] += lam * step
             th = _clip_theta(causes, th, pipe)
-            r_new = np.concatenate(_stack_eval(probs, causes, th))
+            r_new = np.concatenate(_stack_eval(probs, causes, th, scale))
             if _proj(N, r_new) < q0:
                 ok = True
                 break
@@ -148,8 +164,10 @@ def blocks_task(group, *, model: dict, model_given: bool, shared, theta_shared, 
     sensitivities of the shared causes and of the ``extras`` (candidates not yet chosen), with the
     group's nuisance directions projected out: ``Z = S - N (N^+ S)``. Returned per run: ``A = Z^T
     Z``, ``b = Z^T r``, the sandwich meat of ``Z`` (noise response per unit force-noise variance),
-    the RSS and the number of rows. ``final``: also the run's corrections, sensor findings and the
-    gain of the campaign's extended model."""
+    the RSS and the number of rows. Each run's rows (residual and sensitivities) are multiplied by
+    its :func:`run_scales` at the entry ``theta``, so all of these are the run's weighted ones and
+    the sums over runs are the weighted (GLS) stack. ``final``: also the run's corrections, sensor
+    findings and the gain of the campaign's extended model."""
     _x64()
     probs = [_problem(s, model, model_given) for s in group]
     shared, extras, nuis = list(shared), list(extras), list(nuis)
@@ -157,14 +175,15 @@ def blocks_task(group, *, model: dict, model_given: bool, shared, theta_shared, 
     ns, q = len(shared), len(nuis)
     idx_n = list(range(ns, ns + q))
     theta = np.concatenate([np.asarray(theta_shared, float), np.asarray(theta_nuis, float)])
-    theta = _fit_nuisance(probs, causes, theta, idx_n)
+    scale = run_scales(probs, causes, theta)
+    theta = _fit_nuisance(probs, causes, theta, idx_n, scale=scale)
     all_c = causes + extras
     th_all = np.concatenate([theta, np.zeros(len(extras))])
     cols_s = list(range(ns)) + list(range(ns + q, ns + q + len(extras)))
     rs, Js = [], []
-    for p in probs:
-        rs.append(p.eval(causes, theta)[0])
-        Js.append(p.jacobian(all_c, th_all) if all_c else np.zeros((len(rs[-1]), 0)))
+    for p, sc in zip(probs, scale):
+        rs.append(sc * p.eval(causes, theta)[0])
+        Js.append(sc * p.jacobian(all_c, th_all) if all_c else np.zeros((len(rs[-1]), 0)))
     S = np.vstack([J[:, cols_s] for J in Js])
     N = np.vstack([J[:, idx_n] for J in Js])
     Z = S - N @ np.linalg.lstsq(N, S, rcond=None)[0] if q and S.shape[1] else S

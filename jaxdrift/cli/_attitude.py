@@ -117,7 +117,7 @@ def run_ins(args) -> int:
         raise UsageError("--paths must be at least 2")
     summary = _run_into(args.out, lambda tmp: ins_study(tmp, seed=args.seed, duration=args.duration,
                                                         dt=1.0 / args.rate, sigma_m=args.sigma,
-                                                        n_paths=args.paths, method=args.method, progress=True),
+                                                        n_paths=args.paths, method=args.method, progress=_verbose()),
                         "ins", "ins_summary.json", _options(args))
     print(json.dumps(summary["envelope"], indent=1))
     return 0
@@ -138,7 +138,7 @@ def run_quaternion_drift(args) -> int:
     if args.paths < 10:
         raise UsageError("--paths must be at least 10")
     summary = _run_into(args.out, lambda tmp: quaternion_drift_study(tmp, sigma=args.sigma, t1=args.t1, dt=args.dt,
-                                                                     n_paths=args.paths, seed=args.seed, progress=True),
+                                                                     n_paths=args.paths, seed=args.seed, progress=_verbose()),
                         "quaternion-drift", "quaternion_summary.json", _options(args))
     print(json.dumps(summary, indent=1))
     return 0
@@ -157,7 +157,13 @@ def run_accel_array(args) -> int:
         raise UsageError("--paths must be at least 10")
     summary = _run_into(args.out, lambda tmp: accel_array_study(tmp, seed=args.seed, duration=args.duration,
                                                                 dt=1.0 / args.rate, noise=args.noise,
-                                                                n_paths=args.paths, progress=True),
+                                                                n_paths=args.paths, progress=_verbose()),
                         "accel-array", "accel_summary.json", _options(args))
     print(json.dumps(summary, indent=1))
     return 0
+
+
+def _verbose() -> bool:
+    from ._common import VERBOSITY
+
+    return VERBOSITY >= 1

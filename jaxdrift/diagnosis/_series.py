@@ -11,8 +11,6 @@ DOPRI5 at a fixed step (the sample interval, halved until at most 1 ms).
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 __all__ = ["vehicle_series", "corrected_forces", "simulate_force_driven", "SERIES_STATES"]
@@ -29,33 +27,9 @@ def corrected_forces(run, corrections: dict) -> dict[str, np.ndarray]:
 
 def simulate_force_driven(run, models: list[dict], forces: list[dict]) -> list[np.ndarray]:
     """States ``(n, 10)`` of (A.3) for each (model, forces) pair, on ``run.t``."""
-    import jax
-    import jax.numpy as jnp
+    from ..analysis._force_driven import force_driven_states
 
-    from ..models._halfcar import force_driven_rhs, static_equilibrium
-    from ..models._params import HalfCarParams
-    from ..solvers._inputs import SampledSignal
-    from ..solvers._solve import solve_ode
-
-    sub = int(math.ceil(run.dt / 1e-3 - 1e-9))
-    tau = run.t - run.t[0]
-    out = []
-    with jax.enable_x64(True):
-        for m, f in zip(models, forces):
-            p = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(m))
-            sig = SampledSignal(0.0, run.dt, jnp.stack([jnp.asarray(f["f1"]), jnp.asarray(f["f2"])], axis=1))
-
-            def rhs(t, y, args):
-                pp, sg = args
-                ff = sg(t)
-                return force_driven_rhs(t, y, pp, ff[0], ff[1])
-
-            sol = solve_ode(rhs, static_equilibrium(p, "force"), 0.0, float(tau[-1]), saveat=jnp.asarray(tau),
-                            args=(p, sig), dt=run.dt / sub)
-            if int(sol.result) != 0:
-                raise RuntimeError(f"force-driven simulation failed (result code {int(sol.result)})")
-            out.append(np.asarray(sol.ys))
-    return out
+    return force_driven_states(run.t, models, forces, dt=run.dt)
 
 
 def vehicle_series(run, model: dict, report: dict) -> dict[str, np.ndarray]:

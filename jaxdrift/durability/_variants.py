@@ -32,7 +32,7 @@ from ..io._corrections import Corrections
 from ..models._halfcar import pitch_spring_torque, spring_forces
 from ..models._params import HalfCarParams
 from ..solvers._inputs import SampledSignal
-from ..studies import SolverSpec, simulate_forces, simulate_prescribed_pitch
+from ..analysis._force_driven import SolverSpec, simulate_forces, simulate_prescribed_pitch
 
 __all__ = ["VARIANTS", "SIMULATED", "pitch_spring_rule", "integration_step", "SectionForces",
            "OUTPUT_COLUMNS", "SPRING_FREQUENCY_RATIO"]

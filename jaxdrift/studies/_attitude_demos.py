@@ -9,6 +9,27 @@ from __future__ import annotations
 import json
 import math
 import os
+import sys
+
+
+def _finish(plt, fig, ax, out, name, xlabel, ylabel, title, legend_size, log_grid):
+    """Label, legend and grid one axis; save the figure as ``out/name`` and close it."""
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel(ylabel)
+    ax.set_title(title[0], fontsize=title[1])
+    ax.legend(fontsize=legend_size)
+    ax.grid(True, which="both", alpha=0.3) if log_grid else ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(os.path.join(out, name), dpi=90)
+    plt.close(fig)
+
+
+def _bar(total, desc, unit, enabled):
+    """A progress bar on stderr (off unless ``enabled``)."""
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, leave=False, disable=not enabled,
+                dynamic_ncols=True)
 
 
 def _plt():
@@ -52,7 +73,6 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
     errs = []  # body-frame error angles (rotation vector of S_true^T S_rec)
     ang_err = []
     first = None
-    from ._common import progress as _bar
 
     bar = _bar(total=n_paths, desc="ins", unit="path", enabled=progress)
     for p in range(n_paths):
@@ -133,14 +153,8 @@ def ins_study(out, *, seed=0, duration=600.0, dt=1e-3, sigma_m=0.1, n_paths=16, 
         sl_bi = np.polyfit(np.log(tg[100:early]), np.log(s_bi[100:early]), 1)[0]
         grade_out[gname] = {**g, "slope_arw": float(sl_arw), "slope_bias_instability_early": float(sl_bi),
                             "error_deg_at_end_arw": float(s_arw[-1]), "error_deg_at_end_bias_instability": float(s_bi[-1])}
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("RMS angle error [deg]")
-    ax.set_title("Angle random walk (slope 1/2, dotted) vs bias instability (slope 1, dash-dot)", fontsize=9)
-    ax.legend(fontsize=6)
-    ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "fig_grades.png"), dpi=90)
-    plt.close(fig)
+    _finish(plt, fig, ax, out, "fig_grades.png", "t [s]", "RMS angle error [deg]",
+            ("Angle random walk (slope 1/2, dotted) vs bias instability (slope 1, dash-dot)", 9), legend_size=6, log_grid=True)
     summary = {
         "duration_s": duration, "dt": dt, "sigma_m_rad_s": sigma_m, "paths": n_paths, "method_shown": method,
         "envelope": {
@@ -167,7 +181,6 @@ def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, see
 
     plt = _plt()
     res = {}
-    from ._common import progress as _bar
 
     bar = _bar(total=6, desc="quaternion-drift", unit="case", enabled=progress)
     with jax.enable_x64(True):
@@ -188,14 +201,8 @@ def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, see
     for na in (1, 3):
         ax.plot(ts, ito_norm_growth(sigma, ts, na), "k:", lw=1)
         summary["norm_at_end"][f"ito_closed_form/{na}"] = float(ito_norm_growth(sigma, t1, na))
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("mean |q|")
-    ax.set_title(f"(3.14): |q| of the Ito SDE grows like exp(n sigma^2 t/8) (dotted), sigma={sigma}", fontsize=9)
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "quaternion_norm.png"), dpi=90)
-    plt.close(fig)
+    _finish(plt, fig, ax, out, "quaternion_norm.png", "t [s]", "mean |q|",
+            (f"(3.14): |q| of the Ito SDE grows like exp(n sigma^2 t/8) (dotted), sigma={sigma}", 9), legend_size=7, log_grid=False)
     # angle error: single axis, normalised q: the angle is exactly sigma W(t) for expmap
     fig, ax = plt.subplots(figsize=(6, 4))
     lo, hi = stats.chi2.ppf([0.005, 0.995], n_paths) / n_paths
@@ -209,14 +216,8 @@ def quaternion_drift_study(out, *, sigma=0.5, t1=4.0, dt=0.004, n_paths=400, see
                                           "inside_99": bool(lo < ratio < hi)}
     ax.plot(ts, sigma * np.sqrt(ts), "k--", label="sigma sqrt(t)")
     ax.fill_between(ts, sigma * np.sqrt(ts * lo), sigma * np.sqrt(ts * hi), color="0.85", label="99 % chi-square band")
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("Std of the spurious rotation angle [rad]")
-    ax.set_title("(3.16): the error angle is sigma W(t)", fontsize=9)
-    ax.legend(fontsize=7)
-    ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "quaternion_angle_error.png"), dpi=90)
-    plt.close(fig)
+    _finish(plt, fig, ax, out, "quaternion_angle_error.png", "t [s]", "Std of the spurious rotation angle [rad]",
+            ("(3.16): the error angle is sigma W(t)", 9), legend_size=7, log_grid=False)
     summary["chi2_99_interval"] = [float(lo), float(hi)]
     with open(os.path.join(out, "quaternion_summary.json"), "w") as fh:
         json.dump(summary, fh, indent=1)
@@ -270,7 +271,6 @@ def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_pat
     n2 = int(round(T2 / dt)) + 1
     checks = np.unique(np.geomspace(10, n2 - 1, 12).astype(int))
     errs = np.empty((n_paths, len(checks), 3))
-    from ._common import progress as _bar
 
     bar = _bar(total=n_paths, desc="accel-array", unit="path", enabled=progress)
     for p in range(n_paths):
@@ -288,14 +288,8 @@ def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_pat
         ax.loglog(tt, sd_cf[:, k], "-", color=f"C{k}", lw=0.8)
         ax.fill_between(tt, sd_cf[:, k] * math.sqrt(lo), sd_cf[:, k] * math.sqrt(hi), color=f"C{k}", alpha=0.15)
     ax.loglog(tt, math.radians(0.18) * np.sqrt(tt) * noise / 0.1 * 0, alpha=0)  # keep axes
-    ax.set_xlabel("t [s]")
-    ax.set_ylabel("Std of the angle error [rad]")
-    ax.set_title("Array at rest, white accelerometer noise: two integrations, Std ~ t^3/2 (lines: closed form)", fontsize=8)
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "accel_noise_growth.png"), dpi=90)
-    plt.close(fig)
+    _finish(plt, fig, ax, out, "accel_noise_growth.png", "t [s]", "Std of the angle error [rad]",
+            ("Array at rest, white accelerometer noise: two integrations, Std ~ t^3/2 (lines: closed form)", 8), legend_size=7, log_grid=True)
     slope = float(np.polyfit(np.log(tt[tt > 0.5]), np.log(sd_mc[tt > 0.5].mean(1)), 1)[0])
     # high-pass cut-off dependence
     # cut-offs far below 1/duration only add edge transients of the zero-phase filter: start at 2/T
@@ -313,14 +307,8 @@ def accel_array_study(out, *, seed=0, duration=60.0, dt=0.005, noise=0.02, n_pat
     ax.loglog(cutoffs, e_cut, "o-", label=f"noise {noise} m/s^2")
     ax.loglog(cutoffs, e_cut_clean, "s--", label="noise-free (filter distortion only)")
     ax.axhline(e_none, color="k", ls=":", label="no filter, noisy")
-    ax.set_xlabel("high-pass cut-off on omega_l and on the angles [Hz]")
-    ax.set_ylabel("RMS roll/pitch error [deg]")
-    ax.set_title("Remark 2: the result depends on the cut-off", fontsize=9)
-    ax.legend(fontsize=7)
-    ax.grid(True, which="both", alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(os.path.join(out, "accel_highpass.png"), dpi=90)
-    plt.close(fig)
+    _finish(plt, fig, ax, out, "accel_highpass.png", "high-pass cut-off on omega_l and on the angles [Hz]", "RMS roll/pitch error [deg]",
+            ("Remark 2: the result depends on the cut-off", 9), legend_size=7, log_grid=True)
     summary = {
         "duration_s": duration, "dt": dt, "accel_noise": noise, "sensors": r.tolist(),
         "noise_free": {"max_rate_error": float(np.max(np.abs(clean["omega"] - w))),

@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
-from typing import Any, Callable
+from typing import Callable
 
 import equinox as eqx
 import jax
@@ -37,10 +37,7 @@ import numpy as np
 
 from ..models._halfcar import (
     contact_forces,
-    enforced_moment,
-    force_driven_rhs,
     pitch_spring_torque,
-    prescribed_pitch_rhs,
     road_driven_rhs,
     static_equilibrium,
 )
@@ -50,6 +47,8 @@ from ..ensemble._noise import white_noise
 from ..models._params import HalfCarParams, random_perturbed_models
 from ..models._road import WheelInputs, iso8608_road
 from ..solvers._solve import solve_ode
+from ..analysis._force_driven import (SOLVER_FIXED, SOLVER_FIXED_HALF, SOLVER_LOOSE, SOLVER_TIGHT, SolverSpec,
+                                      _span, simulate_forces, simulate_prescribed_pitch)
 from ._paper_plots import solver_table_markdown, write_paper_outputs
 from ._paper_headline import run_headline
 from ._paper_summary import _summarise, drift_off_time
@@ -72,40 +71,6 @@ __all__ = [
     "write_paper_outputs",  # from _paper_plots
     "solver_table_markdown",  # from _paper_plots
 ]
-
-
-@dataclasses.dataclass(frozen=True)
-class SolverSpec:
-    """How the force-driven simulations are integrated by :func:`jaxdrift.solve_ode`.
-
-    ``dt=None``: adaptive Dormand-Prince with ``rtol``/``atol``; a float ``dt``: fixed steps of
-    ``method`` (``"dopri5"`` or ``"euler"``).
-    """
-
-    name: str = "dopri5 rtol 1e-4"
-    method: str = "dopri5"
-    rtol: float = 1e-4
-    atol: float = 1e-6
-    dt: float | None = None
-    max_steps: int = 2_000_000
-
-    def kwargs(self) -> dict[str, Any]:
-        kw: dict[str, Any] = dict(method=self.method, max_steps=self.max_steps)
-        if self.dt is None:
-            kw.update(rtol=self.rtol, atol=self.atol)
-        else:
-            kw.update(dt=self.dt)
-        return kw
-
-
-#: The seed's looser MATLAB setting (tol_rel 1e-4, tol_abs 1e-6): the study's default.
-SOLVER_LOOSE = SolverSpec("dopri5 rtol 1e-4", rtol=1e-4, atol=1e-6)
-#: The seed's tight setting (tol_rel 1e-8, tol_abs 1e-10).
-SOLVER_TIGHT = SolverSpec("dopri5 rtol 1e-8", rtol=1e-8, atol=1e-10)
-#: Fixed-step Dormand-Prince at the force sample rate (1 ms for 1 kHz): the headline's setting.
-SOLVER_FIXED = SolverSpec("dopri5 fixed 1 ms", dt=1e-3)
-#: Half of SOLVER_FIXED's step: the headline's convergence check.
-SOLVER_FIXED_HALF = SolverSpec("dopri5 fixed 0.5 ms", dt=5e-4)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -261,89 +226,6 @@ def _measure(p, inp, ts, rtol, atol):
 # ---------------------------------------------------------------------------------------------
 # steps 2-4: force-driven simulations
 # ---------------------------------------------------------------------------------------------
-def _force_vf(t, x, args):
-    p, sig, spring = args
-    f = sig(t)
-    return force_driven_rhs(t, x, p, f[0], f[1], pitch_spring=spring)
-
-
-def _force_vf_linear(t, x, args):
-    p, sig, spring = args
-    f = sig(t)
-    return force_driven_rhs(t, x, p, f[0], f[1], linear=True, pitch_spring=spring)
-
-
-def _check_signal(name, sig, channels):
-    shape = getattr(getattr(sig, "values", None), "shape", None)
-    if shape is None or len(shape) != 2 or shape[1] != channels:
-        raise ValueError(f"{name} must be a SampledSignal with {channels} channels, got values of shape {shape}")
-
-
-def _span(save_ts, t_span):
-    if t_span is not None:
-        return float(t_span[0]), float(t_span[1])
-    ts = np.asarray(save_ts)  # needs concrete save times (fixed steps need a concrete span)
-    return float(ts[0]), float(ts[-1])
-
-
-def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec = SOLVER_LOOSE, pitch_spring=None,
-                    x0=None, t_span=None, linear: bool = False):
-    """Force-driven model (A.3) excited by ``forces`` (``(2,)`` channels) from its equilibrium.
-
-    Returns the engine's ``Solution`` (``ys`` of shape ``(len(save_ts), 10)``). Pure JAX: may be
-    called under ``jit``/``vmap`` (``params`` may be a traced model); with traced ``save_ts`` give
-    the concrete ``t_span=(t0, t1)``. ``pitch_spring=(k, d)`` adds the section-3 rotational
-    spring-damper; ``linear=True`` integrates the small-angle form of (A.3).
-    """
-    _check_signal("forces", forces, 2)
-    t0, t1 = _span(save_ts, t_span)
-    if x0 is None:
-        x0 = static_equilibrium(params, "force")
-    spring = None if pitch_spring is None else tuple(pitch_spring)
-    return solve_ode(
-        _force_vf_linear if linear else _force_vf, x0, t0, t1, saveat=jnp.asarray(save_ts), args=(params, forces, spring), **solver.kwargs()
-    )
-
-
-def _pitch_vf(t, x, args):
-    p, sig, pitch = args
-    f = sig(t)
-    b = pitch(t)
-    return prescribed_pitch_rhs(t, x, p, f[0], f[1], b[0], b[1])
-
-
-def _pitch_vf_linear(t, x, args):
-    p, sig, pitch = args
-    f = sig(t)
-    b = pitch(t)
-    return prescribed_pitch_rhs(t, x, p, f[0], f[1], b[0], b[1], linear=True)
-
-
-def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSignal, save_ts,
-                              solver: SolverSpec = SOLVER_LOOSE, t_span=None, linear: bool = False):
-    """Step 5: model (A.5) driven by ``forces`` (2 channels) with the pitch prescribed by ``pitch``
-    (3 channels: ``beta, beta', beta''``).
-
-    Returns ``(solution, lam, inertia)``: the engine's ``Solution`` (8 states ``z1, z2, z3, z1',
-    z2', z3', zeta1, zeta2``), the enforced moment ``lambda = I beta'' - cos(beta)(b f3 - a f4)``
-    (``cos(beta) = 1`` with ``linear``) and the inertia term ``I beta''`` at ``save_ts``. The
-    initial state is the model's static equilibrium ``static_equilibrium(params, "pitch")``,
-    whatever the prescribed pitch is at the start: a pitch that does not start at the model's
-    equilibrium pitch (0 for the seed's symmetric table) gives an initial transient in ``lam``.
-    ``t_span``: ``(t0, t1)``, default the first and last save time.
-    """
-    _check_signal("forces", forces, 2)
-    _check_signal("pitch", pitch, 3)
-    t0, t1 = _span(save_ts, t_span)
-    save_ts = jnp.asarray(save_ts)
-    x0 = static_equilibrium(params, "pitch")
-    vf = _pitch_vf_linear if linear else _pitch_vf
-    sol = solve_ode(vf, x0, t0, t1, saveat=save_ts, args=(params, forces, pitch), **solver.kwargs())
-    b = jax.vmap(pitch)(save_ts)
-    lam = enforced_moment(sol.ys, params, b[:, 0], b[:, 1], b[:, 2], linear=linear)
-    return sol, lam, params.I * b[:, 2]
-
-
 def _noisy_forces(forces, t0, dt, key, idx, sigma) -> SampledSignal:
     """Path ``idx``'s measured forces: ``forces`` plus white noise of std ``sigma`` on both channels."""
     v = forces + white_noise(key, idx, forces.shape[0], jnp.stack([sigma, sigma]), dtype=forces.dtype)

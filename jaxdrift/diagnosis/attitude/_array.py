@@ -19,7 +19,9 @@ import numpy as np
 from scipy import stats
 
 from ...models._quaternion import skew_np
-from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, finding, fmt
+from .._diffnoise import first_plateau, white_factor
+from ._causes import ACCEL_NOISE, GYRO_BIAS, NONRIGID, SENSOR_POSITION
+from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, fmt
 
 __all__ = ["array_residual", "array_fit", "rigidity_rms", "gyro_noise_power", "white_rigidity_power", "array_step"]
 
@@ -267,18 +269,11 @@ def white_rigidity_power(resid, N, blocks, max_order: int = 8):
         if resid.shape[0] - k < 4 * len(blocks):
             break
         d = np.diff(resid, k, axis=0)
-        e = np.sum(d**2, axis=(1, 2)) / (math.comb(2 * k, k) * dof)
+        e = np.sum(d**2, axis=(1, 2)) / (white_factor(k) * dof)
         pb = np.array([e[b[b < len(e)]].mean() for b in blocks])
         m, se = _mean_se(pb)
         ests.append((k, m, se, pb))
-    chosen = None
-    for (k, m, se, _), nxt in zip(ests[:-1], ests[1:]):
-        if abs(m - nxt[1]) <= 3.0 * max(se, nxt[2]) + 1e-300:
-            chosen = nxt
-            break
-    plateau = chosen is not None
-    if chosen is None:
-        chosen = min(ests, key=lambda e: e[1])
+    chosen, plateau, _ = first_plateau(ests)
     k, m, se, pb = chosen
     return {"power": m, "se": se, "per_block": pb, "order": k, "plateau": plateau}
 
@@ -300,7 +295,7 @@ def _accel_noise_finding(s, acc_var, acc_se, tq, wp, m_gn):
     lo = math.sqrt(max(acc_var - tq * acc_se, 0.0))
     hi = math.sqrt(acc_var + tq * acc_se)
     s.noise_findings.append({
-        "cause": "accel_noise", "estimate": est, "unit": "m/s^2", "interval": [lo, hi],
+        "cause": ACCEL_NOISE.name, "estimate": est, "unit": ACCEL_NOISE.unit, "interval": [lo, hi],
         "evidence": (
             f"order-{wp['order']} differences of the array's rigidity residual are white with "
             f"{fmt(math.sqrt(wp['power']))} m/s^2 RMS per degree of freedom; gyro noise through omega~ omega~ "
@@ -434,8 +429,8 @@ def _displaced_sensors(af, N, tq, floor, c_up):
         excluded.append(j)
         where = (f"below {fmt(af['low']['f_cut'])} Hz, where the body moves as a rigid one" if band == "low"
                  else "over the full band")
-        pos_found.append(finding(
-            "sensor_position", [float(v) for v in dj], "m", [[float(v) for v in dj - half], [float(v) for v in dj + half]],
+        pos_found.append(SENSOR_POSITION.finding(
+            [float(v) for v in dj], [[float(v) for v in dj - half], [float(v) for v in dj + half]],
             f"the accelerations of sensor {j + 1} fit the rigid-body motion seen by the gyro best with its position "
             f"moved by [{', '.join(fmt(v) for v in dj)}] m relative to the others {where} (chi-square {fmt(chi2)}, 3 dof)",
             math.sqrt(chi2), sensor=j + 1))
@@ -466,8 +461,8 @@ def _array_gyro_biases(s, af, N, tq):
         b = float(th[3 * N + c])
         se = math.sqrt(max(cov[3 * N + c, 3 * N + c], 0.0))
         if se > 0 and abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
-            s.findings.append(finding(
-                "gyro_bias", b, "rad/s", [float(b - tq * se), float(b + tq * se)],
+            s.findings.append(GYRO_BIAS.finding(
+                b, [float(b - tq * se), float(b + tq * se)],
                 f"the array's centripetal accelerations (M+ = omega~ omega~) match the gyro's {ch} only after "
                 f"removing {fmt(b)} rad/s (z = {fmt(abs(b) / se)})",
                 abs(b) / se, channel=ch))
@@ -518,8 +513,8 @@ def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
         frac = (3 * N - 6) / (3 * N)
         lo = math.sqrt(max(nr2 - tq2 * nr_se, 0.0) * frac)
         hi = math.sqrt((nr2 + tq2 * nr_se) * (1.0 + 2.0 * (1.0 - frac)) / 1.0)
-        s.findings.append(finding(
-            "nonrigid", nr, "m/s^2", [lo, hi],
+        s.findings.append(NONRIGID.finding(
+            nr, [lo, hi],
             f"after the reported corrections the array's accelerations depart from the best rigid-body motion "
             f"by {fmt(math.sqrt(m2))} m/s^2 RMS per degree of freedom, of which {fmt(math.sqrt(wp['power']))} is white "
             f"(noise); the rest, {fmt(nr)} m/s^2, is correlated in time (a deformation)",

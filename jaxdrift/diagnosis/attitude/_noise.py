@@ -9,9 +9,9 @@
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
+
+from .._diffnoise import diff_variance, first_plateau
 
 __all__ = ["estimate_white_noise", "allan"]
 
@@ -24,29 +24,12 @@ def estimate_white_noise(x, dt, max_order: int = 8):
     """
     x = np.asarray(x, float)
     n = x.shape[0]
-    ests = []
-    for k in range(1, max_order + 1):
-        if n - k < 8:
-            break
-        d = np.diff(x, k, axis=0)
-        ck = math.comb(2 * k, k)
-        v = np.mean(d * d, axis=0) / ck
-        rho2 = math.comb(4 * k, 2 * k) / ck**2
-        se = v * np.sqrt(2.0 * rho2 / d.shape[0])
-        ests.append((k, v, se))
-    chosen = None
-    for (k, v, se), (k2, v2, se2) in zip(ests[:-1], ests[1:]):
-        if np.all(np.abs(v - v2) <= 3.0 * np.maximum(se, se2) + 1e-300):
-            chosen = (k2, v2, se2)
-            # the motion's share left at order k2: each order damps a motion at f by
-            # (2 sin(pi f dt))^2 / (C(2k+2, k+1) / C(2k, k)) ~ sin^2(pi f dt), at most 1/2 below
-            # fs/4, so the share left is at most the change from the order before (per column)
-            leak = np.abs(v - v2)
-            break
-    plateau = chosen is not None
-    if chosen is None:
-        chosen = min(ests, key=lambda e: float(np.sum(e[1])))
-        leak = np.zeros_like(chosen[1])
+    ests = [(k, *diff_variance(x, k)[:2]) for k in range(1, max_order + 1) if n - k >= 8]
+    chosen, plateau, before = first_plateau(ests)
+    # the motion's share left at the chosen order: each order damps a motion at f by
+    # (2 sin(pi f dt))^2 / (C(2k+2, k+1) / C(2k, k)) ~ sin^2(pi f dt), at most 1/2 below fs/4, so
+    # the share left is at most the change from the order before (per column)
+    leak = np.abs(before[1] - chosen[1]) if plateau else np.zeros_like(chosen[1])
     k, v, se = chosen
     return {"sigma": np.sqrt(v), "var": v, "var_se": se, "var_method": leak, "order": k, "plateau": plateau, "dt": dt}
 

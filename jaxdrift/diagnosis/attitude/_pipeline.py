@@ -36,6 +36,7 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_angle_between_np,
 )
+from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE
 from ._array import array_step
 from ._consistency import consistency, still_rows
 from ._realworld import (
@@ -57,7 +58,6 @@ from ._common import (
     MIN_INTERVAL_ROWS,
     SCALE_FLOOR,
     Z_SIGNIFICANT,
-    finding,
     fmt,
 )
 from ._gyro import cluster_cov, half_rate_fit, reference_fit, reml_drift, rw_cov, static_segment
@@ -182,7 +182,7 @@ def gyro_noise_step(s):
         lo = math.sqrt(max(var_pooled - half, 0.0) * dt)
         hi = math.sqrt((var_pooled + half) * dt)
         s.noise_finding = {
-            "cause": "gyro_noise", "estimate": N_hat, "unit": "rad/sqrt(s)", "interval": [lo, hi],
+            "cause": GYRO_NOISE.name, "estimate": N_hat, "unit": GYRO_NOISE.unit, "interval": [lo, hi],
             "evidence": (
                 f"order-{wn['order']} differences of the rates are white with per-sample std "
                 f"{', '.join(fmt(v) for v in sigma_axis)} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
@@ -355,18 +355,18 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
         s_half = z95 * math.sqrt(max(var_int[sc_idx + c], 0.0))
         if c in fit["weak_scale"]:
-            not_determined(s, "gyro_scale", ch, "too little rotation about it against the noise")
+            not_determined(s, GYRO_SCALE.name, ch, "too little rotation about it against the noise")
         elif sc_idx + c in bad or not s_se > 0 or not math.isfinite(s_hat):
-            not_determined(s, "gyro_scale", ch, _degenerate_reason(fit, sc_idx + c) + why_lost)
+            not_determined(s, GYRO_SCALE.name, ch, _degenerate_reason(fit, sc_idx + c) + why_lost)
         elif max(s_se, s_half / z95) > 0.05:
-            not_determined(s, "gyro_scale", ch, f"too little rotation about it: standard error {fmt(max(s_se, s_half / z95))}")
+            not_determined(s, GYRO_SCALE.name, ch, f"too little rotation about it: standard error {fmt(max(s_se, s_half / z95))}")
         elif not 0.5 < s_hat < 2.0:
-            not_determined(s, "gyro_scale", ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
+            not_determined(s, GYRO_SCALE.name, ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
                            "the gyro disagree in a way no scale explains" + why_lost)
         elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
             s.scale[c] = s_hat
-            s.findings.append(finding(
-                "gyro_scale", float(s_hat), "ratio", [float(s_hat - s_half), float(s_hat + s_half)],
+            s.findings.append(GYRO_SCALE.finding(
+                float(s_hat), [float(s_hat - s_half), float(s_hat + s_half)],
                 f"rotation about {ch} between reference rows is {fmt(s_hat)} times the gyro's "
                 f"(z = {fmt(abs(s_hat - 1) / s_se)})",
                 abs(s_hat - 1) / s_se, channel=ch))
@@ -382,15 +382,15 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
             b0_half = z95 * math.sqrt(max(var_int[offs[c]], 0.0))
         if c in s.held_bias:
-            not_determined(s, "gyro_bias", ch, "its axis is nearly the global axis on which the reference is "
+            not_determined(s, GYRO_BIAS.name, ch, "its axis is nearly the global axis on which the reference is "
                            "inconsistent: the rest of the reference hardly sees it (held at 0 while fitting the others)")
             continue
         if offs[c] in bad or not b0_se > 0 or not math.isfinite(b0):
-            not_determined(s, "gyro_bias", ch, _degenerate_reason(fit, offs[c]) + why_lost)
+            not_determined(s, GYRO_BIAS.name, ch, _degenerate_reason(fit, offs[c]) + why_lost)
             continue
         if c in drift:
-            s.findings.append(finding(
-                "gyro_bias_drift", d["K"], "rad/s/sqrt(s)", [float(v) for v in d["interval"]],
+            s.findings.append(GYRO_BIAS_DRIFT.finding(
+                d["K"], [float(v) for v in d["interval"]],
                 f"the {ch} bias over {M} segments wanders like a random walk of intensity {fmt(d['K'])} "
                 f"rad/s/sqrt(s) (REML likelihood ratio {fmt(d['lr'])} against a constant bias)",
                 math.sqrt(max(d["lr"], 0.0)), channel=ch))
@@ -401,8 +401,8 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             s.corrections[ch] = replace(s.corrections[ch], bias=float(b0))
             if c not in drift:
                 s.bias_path[:, c] = b0
-            s.findings.append(finding(
-                "gyro_bias", float(b0), "rad/s", [float(b0 - b0_half), float(b0 + b0_half)],
+            s.findings.append(GYRO_BIAS.finding(
+                float(b0), [float(b0 - b0_half), float(b0 + b0_half)],
                 f"integrated {ch} departs from the reference like a constant rate error of {fmt(b0)} rad/s "
                 f"(z = {fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
                 abs(b0) / b0_se, channel=ch))
@@ -513,8 +513,8 @@ def static_segment_step(s):
         s.corrections[ch] = replace(s.corrections[ch], bias=b)
         s.bias_path[:, c] = b
         if abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
-            s.findings.append(finding(
-                "gyro_bias", b, "rad/s", [float(b - z95 * se), float(b + z95 * se)],
+            s.findings.append(GYRO_BIAS.finding(
+                b, [float(b - z95 * se), float(b + z95 * se)],
                 f"{ch} reads {fmt(b)} rad/s on average while standing still ({fmt((i1 - i0) * dt)} s, z = {fmt(abs(b) / se)})",
                 abs(b) / se, channel=ch))
     s.allan_series, s.allan_label = st["data"], "rates in the static segment"

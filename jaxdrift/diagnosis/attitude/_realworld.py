@@ -19,6 +19,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
 from ._noise import estimate_white_noise
 
@@ -57,7 +58,7 @@ def noise_kind_step(s):
             s.sigma_axis, s.noise_found = wn["sigma"], True
             s.noise_var_rate = max(float(np.mean(wn["var"])) * dt, s.floor**2 * dt, 1e-24)
             s.noise_finding = {
-                "cause": "gyro_noise", "estimate_kind": "estimate", "estimate": N, "unit": "rad/sqrt(s)",
+                "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
                 "interval": [lo, hi],
                 "evidence": (
                     f"while the reference says the body does not move (t = {fmt(s.t[i0])}..{fmt(s.t[i1 - 1])} s), "
@@ -151,8 +152,8 @@ def inconsistent_findings(spans, use):
             what = (f"the reference turns about the global {sp['axis']} axis over t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s "
                     f"while the gyro says the body is still (up to {fmt(sp['rate'])} rad/s; an estimator still "
                     f"converging, a heading reset)")
-        f = {"cause": "reference_inconsistent", "axis": sp["axis"], "span_s": [sp["t0"], sp["t1"]],
-             "estimate": sp["rate"], "unit": "rad/s", "interval": None,
+        f = {"cause": REFERENCE_INCONSISTENT.name, "axis": sp["axis"], "span_s": [sp["t0"], sp["t1"]],
+             "estimate": sp["rate"], "unit": REFERENCE_INCONSISTENT.unit, "interval": None,
              "evidence": what + f"; left out of the gyro fit on that axis ({int((~use).sum())} interval-axis cells in all)"}
         out.append((f, 1e9 - len(out)))
     return out

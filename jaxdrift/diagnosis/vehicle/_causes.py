@@ -51,6 +51,10 @@ class CauseKind(abc.ABC):
     method_rel: ClassVar[float] = 0.0
     #: a sensor effect of one logger (a campaign's nuisance) rather than of the vehicle
     is_sensor: ClassVar[bool] = True
+    #: finite-difference step of theta (kinds whose step depends on the sampling override fd_step)
+    step: ClassVar[float] = 1e-3
+    #: the physically plausible range of theta (kinds whose range depends on the run override bounds)
+    theta_range: ClassVar[tuple[float, float]] = (-math.inf, math.inf)
 
     def __repr__(self) -> str:
         return self.name
@@ -71,11 +75,11 @@ class CauseKind(abc.ABC):
 
     def bounds(self, pipe) -> tuple[float, float]:
         """The physically plausible range of theta (``pipe``: the run's pipeline, or None)."""
-        return -math.inf, math.inf
+        return self.theta_range
 
-    @abc.abstractmethod
     def fd_step(self, dt: float) -> float:
         """Finite-difference step of theta on a run sampled at ``dt``."""
+        return self.step
 
     def floor(self, pipe) -> float:
         return self.practical
@@ -104,9 +108,7 @@ class ForceOffset(CauseKind):
     name = "force_offset"
     unit = "N"
     practical = 0.05
-
-    def fd_step(self, dt):
-        return 1.0
+    step = 1.0
 
     def candidates(self):
         # the same offset on both forces: indistinguishable from a mass error without heave data
@@ -140,11 +142,7 @@ class ForceScale(CauseKind):
         # estimate = 1 / (1 + theta): decreasing
         return self.to_estimate(min(theta + half, 10.0)), self.to_estimate(max(theta - half, -0.99))
 
-    def bounds(self, pipe):
-        return -0.5, 1.0
-
-    def fd_step(self, dt):
-        return 1e-3
+    theta_range = (-0.5, 1.0)
 
     def correct(self, model, params, corr, target, theta):
         return params, corr.with_channel(target, gain=corr[target].gain * (1.0 + theta))
@@ -186,14 +184,12 @@ class ForceGainDrift(CauseKind):
     name = "force_gain_drift"
     unit = "1/s"
     practical = 1e-5
+    step = 1e-5
 
     def bounds(self, pipe):
         # the scale stays within 0.5..1.5 over the run
         half = 0.5 * pipe.h * (pipe.n - 1) if pipe is not None else 1.0
         return -0.5 / half, 0.5 / half
-
-    def fd_step(self, dt):
-        return 1e-5
 
     def correct(self, model, params, corr, target, theta):
         return params, corr.with_channel(target, drift=corr[target].drift + theta)
@@ -218,11 +214,7 @@ class ParameterError(CauseKind):
     def to_theta(self, estimate):
         return estimate - 1.0
 
-    def bounds(self, pipe):
-        return -0.6, 1.5
-
-    def fd_step(self, dt):
-        return 1e-3
+    theta_range = (-0.6, 1.5)
 
     def candidates(self):
         # g is not a candidate: gravity is known to 0.3 % anywhere on Earth, while its signature

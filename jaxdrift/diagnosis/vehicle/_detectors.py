@@ -10,6 +10,7 @@ import numpy as np
 import scipy.optimize
 import scipy.signal
 
+from .._diffnoise import robust_diff_sigma
 from ._causes import FORCE_CHANNELS
 
 #: below this force-noise level [N] no noise is reported (about 1e-4 of the seed's static load;
@@ -18,10 +19,8 @@ NOISE_MIN_N = 0.5
 
 
 def _diff_sigma(x: np.ndarray, k: int) -> float:
-    """Robust white-noise level from the k-th difference (var = C(2k, k) sigma^2 for white noise)."""
-    d = np.diff(x, k)
-    mad = np.median(np.abs(d - np.median(d))) * 1.4826
-    return float(mad / math.sqrt(math.comb(2 * k, k)))
+    """Robust white-noise level from the k-th difference (:func:`.._diffnoise.robust_diff_sigma`)."""
+    return robust_diff_sigma(x, k)
 
 
 def _hf_noise_sigma(f: np.ndarray) -> float:

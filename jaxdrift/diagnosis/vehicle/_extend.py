@@ -94,14 +94,6 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     return out
 
 
-def _force_rhs(t, y, args):
-    from ...models._halfcar import force_driven_rhs
-
-    params, sig = args
-    f = sig(t)
-    return force_driven_rhs(t, y, params, f[0], f[1])
-
-
 #: compiled solves by (samples, sample interval, steps per sample), least recently used first
 _JIT_CACHE: dict = {}
 
@@ -113,7 +105,7 @@ def _compiled_solve(n: int, dt: float, sub: int):
     compiles in about half the time of the general one."""
     import jax
 
-    from ...solvers._solve import solve_ode
+    from ...analysis._force_driven import SolverSpec, simulate_forces
 
     key = (n, dt, sub)
     f = _JIT_CACHE.pop(key, None)
@@ -122,7 +114,7 @@ def _compiled_solve(n: int, dt: float, sub: int):
         t1, h = float(tau[-1]), dt / sub
 
         def one(p, sg, y):
-            sol = solve_ode(_force_rhs, y, 0.0, t1, saveat=tau, args=(p, sg), dt=h)
+            sol = simulate_forces(p, sg, tau, SolverSpec("fixed", dt=h), x0=y, t_span=(0.0, t1))
             return sol.ys, sol.result
 
         f = jax.jit(jax.vmap(one))
