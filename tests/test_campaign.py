@@ -137,50 +137,105 @@ def test_joint_fit_weights_runs_by_their_noise(tmp_path):
     assert v == pytest.approx(v_iv, rel=0.05)
     m_iv = v_iv * (est[0] / var[0] + est[1] / var[1])
     assert abs(theta[0] - m_iv) <= 0.1 * math.sqrt(v_iv)
-    # the floor of the interval averages over the runs' effective number, here about 1
+    # the finding: the inverse-variance mean of the two runs' own estimates, each run's variance its
+    # single-run error budget (sandwich variance and the resolution floor's)
     from jaxdrift.campaign._joint import check_consistency, consistency, joint_findings
 
     cons = [check_consistency(e) for e in consistency([param], theta, state, JointFit.sigma2, ["r0", "r1"], [1, 1])]
-    n_eff = joint_findings([param], theta, np.array([[v]]), 2, {}, cons)[0]["effective_runs"]
-    assert 1.0 < n_eff < 1.1
+    own = cons[0]["per_run"]
+    assert [r["se"] ** 2 for r in own] == pytest.approx(var, rel=0.05)
+    w = [1.0 / (r["se"] ** 2 + (2e-4 / 1.96) ** 2) for r in own]
+    m = sum(wi * r["estimate"] for wi, r in zip(w, own)) / sum(w)
+    f = joint_findings([param], theta, np.array([[v]]), 2, {}, cons)[0]
+    assert f["estimate"] == pytest.approx(m, abs=1e-12)
+    assert f["stacked_estimate"] == pytest.approx(1.0 + theta[0], abs=1e-12)
 
 
-def test_joint_half_width_closed_form():
-    """The joint interval's half-width from a synthetic stack of runs: ``hypot(1.96 se sqrt(d),
-    floor / sqrt(n_eff))`` with ``d`` the over-dispersion and ``n_eff = (sum u)^2 / sum u^2`` of the
-    runs' weights; with two findings each side widened to the Sidak level."""
+def _entry(param, est, se, weight=None):
+    return {"parameter": param, "joint_estimate": float(np.average(est, weights=weight)),
+            "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s)}
+                        | ({} if weight is None else {"weight": float(weight[i])})
+                        for i, (e, s) in enumerate(zip(est, se))]}
+
+
+def test_joint_interval_is_the_meta_analysis_of_the_runs():
+    """The joint estimate and interval in closed form from a synthetic set of runs' own estimates:
+    the inverse-variance mean with ``v_i = se_i^2 + (floor / 1.96)^2``, half-width ``1.96 sqrt(d /
+    sum w_i)`` with ``d = max(1, chi2 / dof)`` the over-dispersion about that mean; with two
+    findings each side widened to the Sidak level; one run alone: its single-run interval."""
     import scipy.stats
 
     from jaxdrift.campaign._joint import check_consistency, joint_findings
     from jaxdrift.diagnosis.vehicle._causes import Cause
 
+    fse = 2e-4 / 1.96
     rng = np.random.default_rng(3)
     se = np.array([2e-5, 1e-4, 1e-4, 1e-4, 1e-4, 3e-3])
-    u = 1.0 / se ** 2
+    v = se ** 2 + fse ** 2
     th = 0.03
-    # runs scattered 2.5 times their standard errors and the floor in quadrature: over-dispersed
-    est = 1.0 + th + 2.5 * np.hypot(se, 2e-4 / 1.96) * rng.standard_normal(se.size)
-    entry = {"parameter": "m1", "joint_estimate": 1.0 + th,
-             "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s), "weight": float(w)}
-                         for i, (e, s, w) in enumerate(zip(est, se, u))]}
-    cons = check_consistency(entry)
-    d = cons["chi2"] / cons["dof"]
+    # runs scattered 2.5 times their single-run errors: over-dispersed
+    est = 1.0 + th + 2.5 * np.sqrt(v) * rng.standard_normal(se.size)
+    w = 1.0 / v
+    m = float(w @ est / w.sum())
+    d = float(w @ (est - m) ** 2) / 5
     assert d > 1.5, "not over-dispersed: the test says nothing about the factor"
+    cons = check_consistency(_entry("m1", est, se, 1.0 / se ** 2))
+    assert cons["chi2"] / cons["dof"] == pytest.approx(d, rel=1e-12)
     c = Cause("parameter_error", "m1")
-    v = 1.0 / u.sum()
-    n_eff = u.sum() ** 2 / (u * u).sum()
-    f = joint_findings([c], np.array([th]), np.array([[v]]), 6, {"m1": 3}, [cons])[0]
-    half = math.hypot(1.96 * math.sqrt(v * d), 2e-4 / math.sqrt(n_eff))
-    assert f["effective_runs"] == pytest.approx(n_eff, rel=1e-12)
-    assert f["interval"] == pytest.approx([1.0 + th - half, 1.0 + th + half], abs=1e-12)
-    # equal weights: the effective number is the number of runs
-    flat = {**cons, "per_run": [{**r, "weight": 7.0} for r in cons["per_run"]]}
-    assert joint_findings([c], np.array([th]), np.array([[v]]), 6, {}, [flat])[0]["effective_runs"] == pytest.approx(6)
+    stacked = np.array([cons["joint_estimate"] - 1.0])
+    f = joint_findings([c], stacked, np.array([[1.0 / (1.0 / se ** 2).sum()]]), 6, {"m1": 3}, [cons])[0]
+    half = 1.96 * math.sqrt(d / w.sum())
+    assert f["estimate"] == pytest.approx(m, abs=1e-14)
+    assert f["interval"] == pytest.approx([m - half, m + half], abs=1e-12)
+    assert f["overdispersion"] == pytest.approx(d, rel=1e-12)
+    assert f["effective_runs"] == pytest.approx(w.sum() ** 2 / (w * w).sum(), rel=1e-12)
     # two findings: each side widened by the ratio of the normal quantiles at 0.95^(1/2) and 0.95
     k = Cause("parameter_error", "k4")
-    two = joint_findings([c, k], np.array([th, 0.01]), np.diag([v, v]), 6, {}, [cons, {**cons, "parameter": "k4"}])
+    two = joint_findings([c, k], np.array([th, 0.01]), np.eye(2), 6, {}, [cons, {**cons, "parameter": "k4"}])
     q = scipy.stats.norm.ppf(0.5 + 0.5 * 0.95 ** 0.5) / scipy.stats.norm.ppf(0.975)
-    assert two[0]["interval"] == pytest.approx([1.0 + th - q * half, 1.0 + th + q * half], abs=1e-12)
+    assert two[0]["interval"] == pytest.approx([m - q * half, m + q * half], abs=1e-12)
+    # one run: the joint finding is its single-run one
+    one = check_consistency(_entry("m1", est[:1], se[:1]))
+    f1 = joint_findings([c], np.array([est[0] - 1.0]), np.array([[se[0] ** 2]]), 1, {}, [one])[0]
+    h1 = math.hypot(1.96 * se[0], 2e-4)
+    assert f1["interval"] == pytest.approx([est[0] - h1, est[0] + h1], abs=1e-12)
+
+
+def test_joint_floor_averages_over_all_runs_despite_one_dominant_run():
+    """40 runs, all far more precise than the resolution floor, one of them 12 times more precise
+    than the rest: weighted by their sandwich variances alone it carries 78 % of the weight (1.6
+    effective runs) and the floor would shrink only to ``floor / sqrt(1.6)``. Each run's error
+    budget includes the floor, so the runs weigh almost alike: the half-width is ``1.96 /
+    sqrt(sum w_i)``, close to ``floor / sqrt(40)``, and the estimate is not that run's value (it
+    lies a floor's width off, a resolution error of its own)."""
+    from jaxdrift.campaign._joint import check_consistency, effective_runs, joint_findings
+    from jaxdrift.diagnosis.vehicle._causes import Cause
+
+    floor, fse = 2e-4, 2e-4 / 1.96
+    se = np.full(40, 1e-6)
+    se[0] = se[1] * math.sqrt(0.22 / (0.78 * 39))
+    u = 1.0 / se ** 2
+    assert u[0] / u.sum() == pytest.approx(0.78, abs=1e-9) and effective_runs(u) == pytest.approx(1.64, abs=0.01)
+    rng = np.random.default_rng(8)
+    th = -0.07
+    est = 1.0 + th + fse * rng.standard_normal(40)
+    est[0] = 1.0 + th + floor  # the dominant run's own resolution error
+    cons = check_consistency(_entry("a", est, se, u))
+    c = Cause("parameter_error", "a")
+    stacked = float(u @ est / u.sum())
+    f = joint_findings([c], np.array([stacked - 1.0]), np.array([[1.0 / u.sum()]]), 40, {}, [cons])[0]
+    w = 1.0 / (se ** 2 + fse ** 2)
+    m = float(w @ est / w.sum())
+    d = max(1.0, float(w @ (est - m) ** 2) / 39)
+    half = 1.96 * math.sqrt(d / w.sum())
+    assert f["estimate"] == pytest.approx(m, abs=1e-14)
+    assert f["interval"] == pytest.approx([m - half, m + half], abs=1e-12)
+    assert half < 1.5 * floor / math.sqrt(40)
+    assert half < 0.3 * floor / math.sqrt(1.64)
+    assert f["effective_runs"] > 39.9
+    assert f["interval"][0] <= 1.0 + th <= f["interval"][1]
+    assert not f["interval"][0] <= stacked <= f["interval"][1]
+    assert f["stacked_estimate"] == pytest.approx(stacked, abs=1e-14)
 
 
 # ------------------------------------------------------------------- a campaign on Dask
@@ -241,3 +296,39 @@ def test_consistency_flags_the_run_outside_its_interval():
     entry["per_run"][7]["estimate"] = 1.0 + 8 * half
     bad = check_consistency(entry)
     assert not bad["consistent"] and [d["run"] for d in bad["disagreeing_runs"]] == ["r7"]
+
+
+def test_diagnose_cache_outlives_a_change_to_the_joint_stage(tmp_path):
+    """The diagnose stage's code digest leaves out the campaign modules only the later stages run:
+    a change to the joint fit keeps the cached diagnoses, a change anywhere else does not; and the
+    module that diagnoses a run imports none of the left-out ones."""
+    import ast
+
+    from jaxdrift.campaign import _manifest
+
+    root = tmp_path / "pkg"
+    (root / "campaign").mkdir(parents=True)
+    (root / "diagnosis").mkdir()
+    for f in _manifest.AFTER_DIAGNOSIS + ("_tasks.py",):
+        (root / "campaign" / f).write_text("x = 1\n")
+    (root / "diagnosis" / "_fit.py").write_text("y = 1\n")
+
+    def digests():
+        _manifest._CODE.clear()
+        return _manifest.code_digest("diagnose", str(root)), _manifest.code_digest(None, str(root))
+
+    try:
+        d0, full0 = digests()
+        (root / "campaign" / "_joint.py").write_text("x = 2\n")
+        d1, full1 = digests()
+        assert d1 == d0 and full1 != full0
+        (root / "diagnosis" / "_fit.py").write_text("y = 2\n")
+        d2, _ = digests()
+        assert d2 != d0
+    finally:
+        _manifest._CODE.clear()
+    tasks = Path(_manifest.__file__).with_name("_tasks.py")
+    # the campaign's own modules it imports: "from ._x import" and "from . import _x"
+    imported = {n.module if n.module else a.name for n in ast.walk(ast.parse(tasks.read_text()))
+                if isinstance(n, ast.ImportFrom) and n.level == 1 for a in n.names}
+    assert not imported & {f[:-3] for f in _manifest.AFTER_DIAGNOSIS}

@@ -5,9 +5,10 @@
     python benchmarks/validation/campaign_validation.py DIR OUT [--json benchmarks/results/campaign_validation.json]
 
 Per shared parameter: the joint estimate and interval, whether it holds the truth, the single-run
-intervals that name it (their median width) and the narrowing; the joint half-width's terms (the
-sandwich standard error, the over-dispersion, the resolution floor over the effective number of
-runs, the joint-level factor) and the runs' own estimates (``joint.consistency``) against the
+intervals that name it (their median width) and the narrowing; the stacked fit's value and
+whether the same interval centred on it holds the truth; the joint half-width's terms (the
+meta-analytic standard error over the runs' single-run error budgets, the over-dispersion, the
+joint-level factor, the effective number of runs) and the runs' own estimates (``joint.consistency``) against the
 truth: their scatter about it in units of their sandwich standard errors, alone and for the runs
 more precise than the single-run floor, and their inverse-variance mean. Per run: whether its logger's sensor
 effect (or its absence) is named right by the single-run diagnosis and by the campaign (the
@@ -37,8 +38,11 @@ def _named_right(findings, effect) -> bool:
     return sens == [(effect["cause"], effect["channel"])]
 
 
-def _terms(f: dict, cov: dict) -> dict:
-    """The joint half-width's terms: ``half = factor x hypot(1.96 se sqrt(d), floor_half)``."""
+def _terms(f: dict, cov: dict, cons: dict | None) -> dict:
+    """The joint half-width's terms: ``half = factor x 1.96 sqrt(d) x meta_se``, ``meta_se = 1 /
+    sqrt(sum w_i)`` over the runs' single-run error budgets ``w_i = 1 / (se_i^2 + (floor /
+    1.96)^2)``; beside it what the runs' sandwich errors alone would give (``1 / sqrt(sum 1 /
+    se_i^2)``) and the stacked fit's sandwich standard error."""
     j = cov["parameters"].index(f["parameter"])
     k = len(cov["parameters"])
     se = math.sqrt(max(cov["theta_covariance"][j][j] if isinstance(cov["theta_covariance"][0], list)
@@ -47,11 +51,13 @@ def _terms(f: dict, cov: dict) -> dict:
     each = f.get("interval_level", {}).get("each", 0.95)
     factor = float(scipy.stats.norm.ppf(0.5 + 0.5 * each) / scipy.stats.norm.ppf(0.975))
     half = 0.5 * (f["interval"][1] - f["interval"][0])
-    stat = 1.96 * se * math.sqrt(d)
-    return {"sandwich_se": se, "overdispersion": d, "statistical_half": stat,
-            "floor_half": math.sqrt(max((half / factor) ** 2 - stat ** 2, 0.0)),
-            "effective_runs": f.get("effective_runs"), "runs_informing": f.get("runs_informing"),
-            "joint_level_factor": factor, "half": half}
+    meta = (cons or {}).get("meta") or {}
+    pr = (cons or {}).get("per_run") or []
+    return {"stacked_sandwich_se": se, "overdispersion": d, "meta_se": meta.get("se"),
+            "meta_se_without_floor": (1.0 / math.sqrt(sum(1.0 / r["se"] ** 2 for r in pr))) if pr else None,
+            "statistical_half": 1.96 * meta["se"] * math.sqrt(d) if meta else None,
+            "effective_runs": f.get("effective_runs"), "largest_weight_share": meta.get("largest_weight_share"),
+            "runs_informing": f.get("runs_informing"), "joint_level_factor": factor, "half": half}
 
 
 def _own_vs_truth(entry: dict, true: float, floor_se: float) -> dict:
@@ -93,12 +99,18 @@ def score(truth_dir: str, out_dir: str, floor: float = 2e-4) -> dict:
             row.update({"joint": None, "contains_truth": False})
         else:
             w = f["interval"][1] - f["interval"][0]
+            cons = next((c for c in doc["joint"]["consistency"]["parameters"] if c["parameter"] == p), None)
+            st = f.get("stacked_estimate")
             row.update({"joint": f["estimate"], "joint_interval": f["interval"], "joint_width": w,
                         "contains_truth": f["interval"][0] <= true <= f["interval"][1],
                         "narrowing": (med / w) if med else None,
                         "narrower_than_every_single": all(w < hi - lo for lo, hi in singles),
-                        "half_width_terms": _terms(f, doc["joint"]["covariance"])})
-            cons = next((c for c in doc["joint"]["consistency"]["parameters"] if c["parameter"] == p), None)
+                        # the stacked fit's value, and the same interval centred on it
+                        "stacked_estimate": st,
+                        "stacked_centred_contains_truth": None if st is None else abs(true - st) <= 0.5 * w,
+                        "error_in_half_widths": abs(f["estimate"] - true) / (0.5 * w),
+                        "stacked_error_in_half_widths": None if st is None else abs(st - true) / (0.5 * w),
+                        "half_width_terms": _terms(f, doc["joint"]["covariance"], cons)})
             if cons and cons.get("per_run"):
                 row["own_estimates_vs_truth"] = _own_vs_truth(cons, true, floor / 1.96)
         params.append(row)
@@ -143,9 +155,11 @@ def main(argv=None):
               f"{p['median_single_width']}, narrowing x{p.get('narrowing')}")
         if "half_width_terms" in p:
             t = p["half_width_terms"]
-            print(f"   half {t['half']:.4g} = {t['joint_level_factor']:.4f} x hypot(1.96 se {t['sandwich_se']:.4g} x "
-                  f"sqrt(d {t['overdispersion']:.3g}) = {t['statistical_half']:.4g}, floor {t['floor_half']:.4g}; "
-                  f"effective runs {t['effective_runs']})")
+            print(f"   half {t['half']:.4g} = {t['joint_level_factor']:.4f} x 1.96 x meta se {t['meta_se']:.4g} x "
+                  f"sqrt(d {t['overdispersion']:.3g}) (without the floor {t['meta_se_without_floor']:.4g}; the "
+                  f"stack's sandwich se {t['stacked_sandwich_se']:.4g}); effective runs {t['effective_runs']:.3g}, "
+                  f"largest weight share {t['largest_weight_share']:.3g}; stacked value {p['stacked_estimate']} "
+                  f"holds the truth with this interval: {p['stacked_centred_contains_truth']}")
         if "own_estimates_vs_truth" in p:
             o = p["own_estimates_vs_truth"]
             print(f"   runs' own estimates: chi2 about the truth {o['chi2_about_truth']:.3g} on {o['runs']}; "

@@ -95,7 +95,10 @@ def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec =
         x0 = static_equilibrium(params, "force")
     spring = None if pitch_spring is None else tuple(pitch_spring)
     return solve_ode(
-        _force_vf_linear if linear else _force_vf, x0, t0, t1, saveat=jnp.asarray(save_ts), args=(params, forces, spring), **solver.kwargs()
+        _force_vf_linear if linear else _force_vf, x0, t0, t1,
+        # numpy save times stay numpy: the engine then knows them exactly at trace time
+        saveat=save_ts if isinstance(save_ts, np.ndarray) else jnp.asarray(save_ts),
+        args=(params, forces, spring), **solver.kwargs()
     )
 
 

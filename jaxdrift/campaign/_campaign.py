@@ -147,7 +147,8 @@ def consistency_summary(cons):
     return {"level": CONSISTENCY_LEVEL, "method": (
         "each run's own estimate of the parameter (the other shared parameters held at the joint "
         "values, the run's sensor effects projected out) with its single-run interval (sandwich "
-        "variance and the resolution floor); chi-square of their scatter about the joint estimate; "
+        "variance and the resolution floor); their inverse-variance mean (meta: the joint "
+        "finding's estimate and interval); chi-square of their scatter about that mean; "
         "runs outside their 95 % interval after Bonferroni over the runs are listed"),
         "parameters": cons}
 

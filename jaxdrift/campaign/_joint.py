@@ -15,6 +15,11 @@ candidate, a joint Gauss-Newton refit, the Wald test at the single-run level (Bo
 candidates), backward elimination. Then each run's sensor effects are chosen again by the
 single-run selection against the joint vehicle (``_tasks.reselect_task``), and the shared fit is
 repeated with them.
+
+The reported estimate and interval of each chosen parameter are a fixed-effect meta-analysis over
+the runs' own estimates (:func:`meta_analysis`): each run weighted by its whole single-run error
+budget, the sandwich variance plus the resolution floor's, which the stacked fit's one weight per
+run cannot express (:func:`joint_findings`).
 """
 
 from __future__ import annotations
@@ -29,7 +34,7 @@ from ..diagnosis.vehicle._causes import (ALPHA, FORCE_CHANNELS, FORCE_OFFSET, PA
 from ._executor import map_tasks
 from ._tasks import blocks_task, reselect_task
 
-__all__ = ["JointFit", "sensor_causes_of", "effective_runs", "CONSISTENCY_LEVEL"]
+__all__ = ["JointFit", "sensor_causes_of", "effective_runs", "meta_analysis", "CONSISTENCY_LEVEL"]
 
 #: a parameter whose single-run estimates scatter beyond their intervals at this level is reported
 CONSISTENCY_LEVEL = 0.01
@@ -240,14 +245,37 @@ def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[di
     return out
 
 
-def check_consistency(entry: dict) -> dict:
-    """The scatter of the runs' own estimates of a shared parameter about the joint value: each
-    run's variance is its sandwich variance plus the single-run resolution floor in quadrature (its
-    single-run interval), the chi-square on runs - 1 degrees of freedom, and the runs outside their
-    95 % interval after Bonferroni over the runs."""
+def meta_analysis(entry: dict) -> dict | None:
+    """The fixed-effect meta-analysis of a shared parameter over the runs' own estimates
+    (:func:`consistency`): each run's variance ``v_i`` is its single-run error budget, the sandwich
+    variance plus the single-run resolution floor's, ``se_i^2 + (floor / 1.96)^2`` (the variance
+    its single-run interval stands for); the combined estimate is their inverse-variance mean
+    ``sum w_i e_i / sum w_i`` with ``w_i = 1 / v_i``, its variance ``1 / sum w_i``; ``chi2`` is the
+    scatter ``sum w_i (e_i - mean)^2`` on ``runs - 1`` degrees of freedom. ``None`` without runs."""
     c = Cause(PARAMETER_ERROR, entry["parameter"])
     floor_se = _practical(c, None) / 1.96
-    th = entry["joint_estimate"] - 1.0
+    rows = [(float(r["estimate"]), float(r["se"]) ** 2 + floor_se ** 2) for r in entry.get("per_run", [])]
+    if not rows:
+        return None
+    e = np.array([x for x, _ in rows])
+    w = 1.0 / np.array([v for _, v in rows])
+    W = float(w.sum())
+    mean = float(w @ e / W)
+    return {"estimate": mean, "se": math.sqrt(1.0 / W), "chi2": float(w @ (e - mean) ** 2),
+            "dof": max(len(rows) - 1, 1), "runs": len(rows), "effective_runs": effective_runs(w),
+            "largest_weight_share": float(w.max() / W), "floor_se": floor_se}
+
+
+def check_consistency(entry: dict) -> dict:
+    """The scatter of the runs' own estimates of a shared parameter about their combined value
+    (:func:`meta_analysis`; the stacked fit's value where no run has its own estimate): each run's
+    variance is its sandwich variance plus the single-run resolution floor in quadrature (its
+    single-run interval), the chi-square on runs - 1 degrees of freedom, and the runs outside their
+    95 % interval after Bonferroni over the runs. The combined estimate is kept as ``meta``."""
+    c = Cause(PARAMETER_ERROR, entry["parameter"])
+    floor_se = _practical(c, None) / 1.96
+    meta = meta_analysis(entry)
+    th = (meta["estimate"] if meta else entry["joint_estimate"]) - 1.0
     ests = [(r["run"], r["estimate"] - 1.0, r["se"] ** 2 + floor_se ** 2) for r in entry["per_run"]]
     n = len(ests)
     z_bonf = float(scipy.stats.norm.isf(0.025 / max(n, 1)))
@@ -256,7 +284,7 @@ def check_consistency(entry: dict) -> dict:
     pval = float(scipy.stats.chi2.sf(q, dof))
     bad = [{"run": nm, "estimate": 1.0 + e, "interval": [1.0 + e - 1.96 * math.sqrt(v), 1.0 + e + 1.96 * math.sqrt(v)],
             "z": (e - th) / math.sqrt(v)} for nm, e, v in ests if abs(e - th) / math.sqrt(v) > z_bonf]
-    return {**entry, "runs": n, "chi2": q, "dof": dof, "p_value": pval,
+    return {**entry, "meta": meta, "runs": n, "chi2": q, "dof": dof, "p_value": pval,
             "consistent": pval >= CONSISTENCY_LEVEL and not bad, "disagreeing_runs": bad}
 
 
@@ -271,17 +299,20 @@ def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: li
     """The report's finding objects for the shared parameters, their 95 % intervals widened to
     hold jointly as in a single-run report.
 
-    The half-width combines, in quadrature as ``_finding_for`` does for one run: the statistical
-    part, ``1.96 se`` with the variance multiplied by the over-dispersion of the runs' own estimates
-    (``max(1, chi2 / dof)`` of the consistency check: scatter between runs beyond their sandwich
-    variances, whatever its cause, widens the joint interval by as much), and the comparison's
-    resolution, the single-run floor divided by the square root of the effective number of runs
-    that inform the parameter. The floor stands for a per-run resolution error of the sampled
-    comparison, independent between runs (their rates, roads and records differ); the joint
-    estimate is the runs' own estimates averaged with weights ``u_i`` (:func:`consistency`), so
-    such errors average down by ``sqrt(sum u_i^2) / sum u_i = 1 / sqrt(n_eff)``, ``n_eff = (sum
-    u_i)^2 / sum u_i^2`` (Kish), which is the number of runs when they weigh alike and near 1 when
-    one run carries the estimate."""
+    Estimate and interval are the fixed-effect meta-analysis over the runs (:func:`meta_analysis`
+    of each :func:`check_consistency` entry): the inverse-variance mean of the runs' own
+    estimates, each run weighted by its whole single-run error budget (sandwich variance plus the
+    resolution floor's variance), half-width ``1.96 sqrt(d / sum w_i)`` with ``d = max(1, chi2 /
+    dof)`` the over-dispersion of the runs about that mean (scatter beyond the runs' own
+    variances, whatever its cause, widens the interval by as much; it never narrows it). The
+    floor stands for a per-run resolution error of the sampled comparison, independent between
+    runs (their rates, roads and records differ), so it averages down with the runs' number as
+    their sandwich errors do, in proportion to each run's share of the weights: a run far more
+    precise than the floor carries no more weight than the floor allows. The stacked fit's value
+    (``theta``, whose weights ignore the floor) is kept as ``stacked_estimate``; the meta-analytic
+    mean is reported because the interval is the variance of that mean: the stacked value carries
+    the resolution error of the few runs that dominate its weights. A parameter no run has its own
+    estimate of keeps the stacked value with its sandwich error and the single-run floor."""
     from ..diagnosis._intervals import joint_intervals
 
     cons = {c["parameter"]: c for c in consistency}
@@ -289,20 +320,30 @@ def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: li
     for i, c in enumerate(shared):
         k = cons.get(c.target, {})
         n_inf = max(int(k.get("runs", n_runs)), 1)
-        n_eff = effective_runs([r.get("weight", 1.0) for r in k.get("per_run", [])]) or 1.0
-        disp = max(1.0, float(k.get("chi2", 0.0)) / max(float(k.get("dof", 1)), 1.0))
-        se = math.sqrt(max(cov[i, i], 0.0) * disp)
-        f = _finding_for(c, theta[i], se, _practical(c, None) / math.sqrt(n_eff))
-        z = abs(theta[i]) / se if se > 0 else math.inf
+        meta = (k.get("meta") or meta_analysis(k)) if k.get("per_run") else None
+        src = meta or k
+        disp = max(1.0, float(src.get("chi2", 0.0)) / max(float(src.get("dof", 1)), 1.0))
+        if meta:
+            th = c.kind.to_theta(meta["estimate"])
+            se = meta["se"] * math.sqrt(disp)
+            f = _finding_for(c, th, se, 0.0)
+            n_eff = meta["effective_runs"]
+        else:
+            th = float(theta[i])
+            se = math.sqrt(max(cov[i, i], 0.0) * disp)
+            f = _finding_for(c, th, se, _practical(c, None))
+            n_eff = 1.0
+        z = abs(th) / se if se > 0 else math.inf
         f["z"] = float(z)
         f["overdispersion"] = float(disp)
         f["runs_informing"] = n_inf
         f["effective_runs"] = float(n_eff)
+        f["stacked_estimate"] = float(c.to_estimate(theta[i]))
         nm = named.get(c.target, 0)
         f["evidence"] = (f"fitted jointly over the {n_runs} runs (each logger's sensor effects as nuisance "
-                         f"parameters): {c.to_estimate(theta[i]):.5g}, z = {z:.3g}; {nm} of the {n_runs} "
-                         f"single-run diagnoses name it; the runs' own estimates scatter {math.sqrt(disp):.3g} x "
-                         f"their standard errors.")
+                         f"parameters); the inverse-variance mean of the {n_inf} runs' own estimates: "
+                         f"{c.to_estimate(th):.5g}, z = {z:.3g}; {nm} of the {n_runs} single-run diagnoses name it; "
+                         f"the runs' own estimates scatter {math.sqrt(disp):.3g} x their single-run errors.")
         findings.append(f)
     joint_intervals(findings)
     return findings

@@ -117,35 +117,44 @@ def run_specs(paths, *, map=None, units=None, fs=None, force=False, repetitions=
     return specs
 
 
-_CODE: list = []
+#: the campaign modules a run's diagnosis never runs (the joint fit, the outputs, the campaign
+#: damage; ``_tasks.diagnose_task`` imports none of them): the diagnose stage's code digest leaves
+#: them out, so that a change to the joint model reruns the joint stage on the cached diagnoses
+AFTER_DIAGNOSIS = ("_joint.py", "_outputs.py", "_damage.py")
+
+_CODE: dict = {}
 
 
-def code_digest() -> str:
-    """SHA-256 of jaxdrift's own source files: a development checkout changes its code without
-    changing its version number, and a cached result must not outlive the code that made it."""
-    if not _CODE:
-        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+def code_digest(stage: str | None = None, root: str | None = None) -> str:
+    """SHA-256 of jaxdrift's own source files (those under ``root``, default the installed
+    package): a development checkout changes its code without changing its version number, and a
+    cached result must not outlive the code that made it. ``stage="diagnose"``: without the
+    campaign modules in :data:`AFTER_DIAGNOSIS`."""
+    key = (stage == "diagnose", root)
+    if key not in _CODE:
+        top = root or os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        skip = {os.path.join(top, "campaign", f) for f in AFTER_DIAGNOSIS} if stage == "diagnose" else set()
         h = hashlib.sha256()
-        for dirpath, dirs, files in sorted(os.walk(root)):
+        for dirpath, dirs, files in sorted(os.walk(top)):
             dirs.sort()
             for f in sorted(files):
-                if f.endswith(".py"):
+                if f.endswith(".py") and os.path.join(dirpath, f) not in skip:
                     with open(os.path.join(dirpath, f), "rb") as fh:
                         h.update(f.encode() + fh.read())
-        _CODE.append(h.hexdigest())
-    return _CODE[0]
+        _CODE[key] = h.hexdigest()
+    return _CODE[key]
 
 
 def cache_key(spec: RunSpec, model: dict, options: dict, stage: str) -> str:
     """SHA-256 of the run's bytes, its reading options, the model, the stage's options, the
-    jaxdrift version and its source (:func:`code_digest`): a result cached under this key is the
-    result a new computation would give."""
+    jaxdrift version and its source (:func:`code_digest` of the stage): a result cached under this
+    key is the result a new computation would give."""
     h = hashlib.sha256()
     try:
         h.update(sha256_file(spec.path).encode())
     except OSError as e:
         h.update(f"unreadable:{e.strerror}".encode())  # the diagnosis reports the reading error
     h.update(json.dumps({"stage": stage, "reading": spec.reading(), "model": model, "options": options,
-                         "version": jaxdrift_version(), "code": code_digest()}, sort_keys=True,
+                         "version": jaxdrift_version(), "code": code_digest(stage)}, sort_keys=True,
                         default=str).encode())
     return h.hexdigest()
