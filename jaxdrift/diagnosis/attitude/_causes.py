@@ -32,53 +32,20 @@ class AttitudeCause:
         return finding(self.name, estimate, self.unit, interval, evidence, z, **extra)
 
 
-@final
-class GyroNoise(AttitudeCause):
-    """Angle random walk of all three axes."""
-    name, unit = "gyro_noise", "rad/sqrt(s)"
+def _kind(cls_name: str, name: str, unit: str, doc: str) -> type:
+    """A final subclass of :class:`AttitudeCause` (the attitude kinds differ only in these)."""
+    return final(type(cls_name, (AttitudeCause,), {"name": name, "unit": unit, "__doc__": doc,
+                                                    "__module__": __name__}))
 
 
-@final
-class GyroBias(AttitudeCause):
-    """measured = true + bias, per axis."""
-    name, unit = "gyro_bias", "rad/s"
-
-
-@final
-class GyroScale(AttitudeCause):
-    """measured = scale x true, per axis."""
-    name, unit = "gyro_scale", "ratio"
-
-
-@final
-class GyroBiasDrift(AttitudeCause):
-    """The bias is a random walk of this intensity, per axis."""
-    name, unit = "gyro_bias_drift", "rad/s/sqrt(s)"
-
-
-@final
-class SensorPosition(AttitudeCause):
-    """An accelerometer's true position = given position + estimate."""
-    name, unit = "sensor_position", "m"
-
-
-@final
-class Nonrigid(AttitudeCause):
-    """RMS of the array's rigidity residual beyond its noise."""
-    name, unit = "nonrigid", "m/s^2"
-
-
-@final
-class AccelNoise(AttitudeCause):
-    """White noise of the accelerometers."""
-    name, unit = "accel_noise", "m/s^2"
-
-
-@final
-class ReferenceInconsistent(AttitudeCause):
-    """The reference attitude turns where the gyro says the body is still: not a gyro error."""
-    name, unit = "reference_inconsistent", "rad/s"
-
+GyroNoise = _kind("GyroNoise", "gyro_noise", "rad/sqrt(s)", "Angle random walk of all three axes.")
+GyroBias = _kind("GyroBias", "gyro_bias", "rad/s", "measured = true + bias, per axis.")
+GyroScale = _kind("GyroScale", "gyro_scale", "ratio", "measured = scale x true, per axis.")
+GyroBiasDrift = _kind("GyroBiasDrift", "gyro_bias_drift", "rad/s/sqrt(s)", "The bias is a random walk of this intensity, per axis.")
+SensorPosition = _kind("SensorPosition", "sensor_position", "m", "An accelerometer's true position = given position + estimate.")
+Nonrigid = _kind("Nonrigid", "nonrigid", "m/s^2", "RMS of the array's rigidity residual beyond its noise.")
+AccelNoise = _kind("AccelNoise", "accel_noise", "m/s^2", "White noise of the accelerometers.")
+ReferenceInconsistent = _kind("ReferenceInconsistent", "reference_inconsistent", "rad/s", "The reference attitude turns where the gyro says the body is still: not a gyro error.")
 
 GYRO_NOISE, GYRO_BIAS, GYRO_SCALE, GYRO_BIAS_DRIFT = GyroNoise(), GyroBias(), GyroScale(), GyroBiasDrift()
 SENSOR_POSITION, NONRIGID, ACCEL_NOISE = SensorPosition(), Nonrigid(), AccelNoise()

@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import abc
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import ClassVar, final
 
 import numpy as np
 
-from ...io._corrections import FORCE_CHANNELS, Corrections
+from ...io._corrections import FORCE_CHANNELS, Corrections, ForceCorrection
 from ...io._csvio import MODEL_KEYS
 
 __all__ = ["CauseKind", "Cause", "FORCE_OFFSET", "FORCE_SCALE", "FORCE_DELAY", "FORCE_GAIN_DRIFT",
@@ -89,16 +89,27 @@ class CauseKind(abc.ABC):
         """The targets this kind is tried on."""
         return list(FORCE_CHANNELS)
 
-    @abc.abstractmethod
     def correct(self, model: dict, params: dict, corr: Corrections, target: str,
                 theta: float) -> tuple[dict, Corrections]:
         """``params`` (the model with the causes so far) and ``corr`` with this cause at ``theta``
-        added, as new objects; ``model``: the model as given."""
+        added, as new objects; ``model``: the model as given. A sensor kind changes the
+        correction of its channel (``both``: of each) by :meth:`adjust`."""
+        for ch in (FORCE_CHANNELS if target == "both" else (target,)):
+            corr = replace(corr, **{ch: self.adjust(corr[ch], theta)})
+        return params, corr
+
+    def adjust(self, c: ForceCorrection, theta: float) -> ForceCorrection:
+        """A channel's correction with this sensor effect at ``theta`` added."""
+        raise NotImplementedError(f"{self.name} changes the model, not a channel's correction")
 
     # -- words
-    @abc.abstractmethod
+    #: the cause in words (``str.format`` with ``target``, ``estimate``, ``ms`` = estimate x 1e3
+    #: and ``pct`` = estimate x 100)
+    words: ClassVar[str]
+
     def describe(self, target: str, estimate: float) -> str:
         """The cause in words, for evidence sentences."""
+        return self.words.format(target=target, estimate=estimate, ms=estimate * 1e3, pct=estimate * 100)
 
 
 @final
@@ -114,10 +125,8 @@ class ForceOffset(CauseKind):
         # the same offset on both forces: indistinguishable from a mass error without heave data
         return [*FORCE_CHANNELS, "both"]
 
-    def correct(self, model, params, corr, target, theta):
-        for ch in (FORCE_CHANNELS if target == "both" else (target,)):
-            corr = corr.with_channel(ch, offset=corr[ch].offset + theta)
-        return params, corr
+    def adjust(self, c, theta):
+        return replace(c, offset=c.offset + theta)
 
     def describe(self, target, estimate):
         where = "both forces" if target == "both" else target
@@ -144,11 +153,10 @@ class ForceScale(CauseKind):
 
     theta_range = (-0.5, 1.0)
 
-    def correct(self, model, params, corr, target, theta):
-        return params, corr.with_channel(target, gain=corr[target].gain * (1.0 + theta))
+    def adjust(self, c, theta):
+        return replace(c, gain=c.gain * (1.0 + theta))
 
-    def describe(self, target, estimate):
-        return f"a scale of {estimate:.5g} on {target}"
+    words = "a scale of {estimate:.5g} on {target}"
 
 
 @final
@@ -169,11 +177,10 @@ class ForceDelay(CauseKind):
     def floor(self, pipe):
         return 1e-3 * pipe.h
 
-    def correct(self, model, params, corr, target, theta):
-        return params, corr.with_channel(target, delay=corr[target].delay + theta)
+    def adjust(self, c, theta):
+        return replace(c, delay=c.delay + theta)
 
-    def describe(self, target, estimate):
-        return f"a delay of {estimate * 1e3:+.4g} ms on {target}"
+    words = "a delay of {ms:+.4g} ms on {target}"
 
 
 @final
@@ -191,11 +198,10 @@ class ForceGainDrift(CauseKind):
         half = 0.5 * pipe.h * (pipe.n - 1) if pipe is not None else 1.0
         return -0.5 / half, 0.5 / half
 
-    def correct(self, model, params, corr, target, theta):
-        return params, corr.with_channel(target, drift=corr[target].drift + theta)
+    def adjust(self, c, theta):
+        return replace(c, drift=c.drift + theta)
 
-    def describe(self, target, estimate):
-        return f"a scale drifting by {estimate * 100:+.3g} % per second on {target}"
+    words = "a scale drifting by {pct:+.3g} % per second on {target}"
 
 
 @final
@@ -226,8 +232,7 @@ class ParameterError(CauseKind):
     def correct(self, model, params, corr, target, theta):
         return {**params, target: model[target] * (1.0 + theta)}, corr
 
-    def describe(self, target, estimate):
-        return f"{target} = {estimate:.5g} x the model value"
+    words = "{target} = {estimate:.5g} x the model value"
 
 
 @final
