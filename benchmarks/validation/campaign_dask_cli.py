@@ -50,6 +50,28 @@ def _strip(doc):
     return doc
 
 
+def stop_processes(procs) -> None:
+    """Terminate the scheduler, worker and campaign processes a check started (kill after 20 s)."""
+    procs = list(procs)
+    for p in procs:
+        if p.poll() is None:
+            p.terminate()
+    for p in procs:
+        try:
+            p.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            p.kill()
+
+
+def report(result: dict, path: str | None) -> None:
+    """Print the check's result with the load average, and write it to ``path`` (JSON)."""
+    result["load_average"] = os.getloadavg()
+    print(json.dumps(result, indent=1))
+    if path:
+        with open(path, "w") as fh:
+            json.dump(result, fh, indent=1)
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("data")
@@ -112,19 +134,8 @@ def main(argv=None):
         result["rerun_cached_runs"] = d3["provenance"]["cached_runs"]
         result["rerun_same_campaign_json"] = _strip(d3) == _strip(d1)
     finally:
-        for p in procs.values():
-            if p.poll() is None:
-                p.terminate()
-        for p in procs.values():
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-    result["load_average"] = os.getloadavg()
-    print(json.dumps(result, indent=1))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(result, fh, indent=1)
+        stop_processes(procs.values())
+    report(result, a.json)
 
 
 if __name__ == "__main__":

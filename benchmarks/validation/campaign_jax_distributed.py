@@ -21,6 +21,9 @@ import subprocess
 import sys
 import time
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+from benchmarks.validation.campaign_dask_cli import report, stop_processes  # noqa: E402
+
 BIN = os.path.dirname(sys.executable)
 
 
@@ -78,18 +81,8 @@ def main(argv=None):
         out["max_relative_difference"] = rel
         out["computed_in"] = [d1["force_noise"]["computed_in"], d2["force_noise"]["computed_in"]]
     finally:
-        for p in procs:
-            p.terminate()
-        for p in procs:
-            try:
-                p.wait(timeout=20)
-            except subprocess.TimeoutExpired:
-                p.kill()
-    out["load_average"] = os.getloadavg()
-    print(json.dumps(out, indent=1))
-    if a.json:
-        with open(a.json, "w") as fh:
-            json.dump(out, fh, indent=1)
+        stop_processes(procs)
+    report(out, a.json)
 
 
 if __name__ == "__main__":
