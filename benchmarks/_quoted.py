@@ -15,7 +15,8 @@ that name the committed JSON file it comes from, the value inside it and its for
   ``|ratio - 1|``; aggregates ``max min len sum median spread maxdev1 maxabs inv sqrt ratio diff``; ``a:b`` takes a slice of a list
   like ``*``, and ``[?field=value]`` the elements whose ``field`` equals ``value``
   (``rows.[?fs=200].stabilised.*|max``; also ``>=``, ``<=`` and several joined by ``&``);
-  ``[(a,b)]`` picks two keys for ``|ratio`` or ``|diff`` (``cases.[(diffrax,jaxdrift)].ns|ratio``));
+  ``[(a,b)]`` picks two keys for ``|ratio`` or ``|diff`` (``cases.[(diffrax,jaxdrift)].ns|ratio``;
+  ``[(a, x;b, y)]`` with ``;`` where the keys hold commas));
 - the format: a Python format spec (``.2f``, ``.3g``, ``d``, ``,d``, ``.0%``), optionally followed
   by ``*FACTOR`` to scale first (``.0f*100``: metres as centimetres; ``.2f*9.313225746154785e-10``:
   bytes as GiB). ``d`` rounds a float to the nearest integer. A string value is written as it is
@@ -160,7 +161,8 @@ def _walk(obj: Any, parts: list[str], key: str, starred: bool = False) -> Any:
         if part == "*" or (isinstance(obj, list) and (re.fullmatch(r"-?\d*:-?\d*", part) or part.startswith("?"))) \
                 or (isinstance(obj, dict) and part.startswith("(") and part.endswith(")")):
             if part.startswith("("):  # "[(a,b)]": the values of keys a and b, in that order, like '*'
-                names = part[1:-1].split(",")
+                inner = part[1:-1]
+                names = inner.split(";" if ";" in inner else ",")  # ';' where a key holds commas
                 missing = [k for k in names if k not in obj]
                 if missing:
                     raise QuoteError(f"key {key!r}: no {missing[0]!r}")
@@ -301,7 +303,7 @@ def throughput_table(root: Path) -> str:
 
 @block("real-logs-table")
 def _real_logs_table(root: Path) -> str:
-    """docs/real-data.md: one row per log of docs/validation/real_logs.json (benchmarks/real_logs.py)."""
+    """docs/real-data.md: one row per log of docs/validation/real_logs.json (benchmarks/validation/real_logs.py)."""
     r = json.loads((root / "docs/validation/real_logs.json").read_text())
 
     def g(x):

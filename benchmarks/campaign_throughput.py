@@ -1,7 +1,7 @@
 """Campaign throughput: runs diagnosed per second on a Dask LocalCluster of 1 and of 2 worker
 processes (one thread each), the same runs, nothing cached.
 
-    python benchmarks/independent/gen_campaign.py --n 8 --seed S --out DIR
+    python benchmarks/validation/gen_campaign.py --n 8 --seed S --out DIR
     python benchmarks/campaign_throughput.py DIR --runs 8 --json benchmarks/results/campaign_throughput.json
 
 The cluster is started and every worker has imported the diagnosis before the clock starts; the

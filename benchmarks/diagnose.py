@@ -1,4 +1,4 @@
-"""Benchmark: diagnose a 60 s, 1 kHz vehicle run (the issue's bar: under a minute on this machine).
+"""Benchmark: diagnose a 60 s, 1 kHz vehicle run (the bar: under a minute on this machine).
 
 Generates a run with a hidden effect (``jaxdrift.studies._rungen``, not timed), then times
 ``jaxdrift diagnose`` phases: reading the CSV, the cause selection (residual pipeline), the whole

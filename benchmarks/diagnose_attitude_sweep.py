@@ -120,20 +120,29 @@ def main(argv=None):
                                      else "not reported"))
             n_first += first
             yaw_rms = float(np.sqrt(np.mean(tr["w_true"][:, 2] ** 2)))
+            scale_snr = None
             for c, ch, v in truth:
                 if c == "gyro_scale":
                     # rough signal-to-noise of a scale error: |s - 1| rms(rate) sqrt(T) / N
                     w_rms = float(np.sqrt(np.mean(tr["w_true"][:, AXES.index(ch)] ** 2)))
-                    misses.append(f"scale signal-to-noise about {abs(v - 1) * w_rms * np.sqrt(kw['duration']) / kw['arw']:.1f}")
+                    scale_snr = abs(v - 1) * w_rms * np.sqrt(kw['duration']) / kw['arw']
+                    misses.append(f"scale signal-to-noise about {scale_snr:.1f}")
             line = (f"{r:3d} {effect:10s} {kw['rate_hz']:5.0f} Hz {kw['duration']:5.1f} s N {kw['arw']:.1e} "
                     f"ref {kw['reference']!s:>3} yaw rms {yaw_rms:.3f}: first {'ok' if first else 'NO'} {got[:3]}"
                     + ("; " + "; ".join(misses) if misses else "") + f" ({time.perf_counter() - t0:.1f} s)")
             print(line, flush=True)
             rows.append({"run": r, "effect": effect, "config": {k: v for k, v in kw.items()}, "truth": truth,
-                         "findings": got, "first": first, "misses": misses, "yaw_rate_rms": yaw_rms})
+                         "findings": got, "first": first, "misses": misses, "yaw_rate_rms": yaw_rms,
+                         "scale_snr": scale_snr})
     print(f"\nright causes first: {n_first} of {a.n}; true values inside their 95 % intervals: {n_in} of {n_total}")
     if a.json:
-        Path(a.json).write_text(json.dumps({"seed": a.seed, "n": a.n, "first": n_first, "inside": n_in,
+        import datetime as _dt
+
+        from _common import machine_info
+
+        Path(a.json).write_text(json.dumps({"benchmark": "diagnose_attitude_sweep", "args": vars(a),
+                                            "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                                            "machine": machine_info(), "seed": a.seed, "n": a.n, "first": n_first, "inside": n_in,
                                             "total": n_total, "runs": rows}, indent=1, default=str) + "\n")
 
 

@@ -5,7 +5,7 @@ Each draw (``jaxdrift.studies._rungen.draw_sweep_case``, the slow test's draw) p
 sampling rate, a channel set, an effect size ("realistic" or "small"), 0-2 systematic effects plus
 force noise, a speed of 8-30 m/s and an ISO 8608 class A-C road, makes the run with ``jaxdrift.studies._rungen.make_run`` and
 diagnoses it (without the force-driven simulation, which does not change the findings), and scores
-the report with ``benchmarks/_scoring.score_report`` (the slow test's rule). Prints every miss and a
+the report with ``benchmarks/validation/scoring.score_report`` (the slow test's rule). Prints every miss and a
 summary line; ``--json`` writes the counts.
 
 Examples (the numbers quoted in ``docs/diagnosis.md``)::
@@ -22,11 +22,17 @@ Examples (the numbers quoted in ``docs/diagnosis.md``)::
 from __future__ import annotations
 
 import argparse
+import datetime as _dt
 import json
+import time
 
 import numpy as np
 
-from _scoring import score_report
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))  # the repository root: benchmarks.validation
+from benchmarks.validation.scoring import score_report  # noqa: E402
 
 #: a vehicle unlike the seed's (heavier, longer, softer), to check nothing is tuned to the default
 OTHER_VEHICLE = dict(a=1.3, b=1.5, m1=40.0, m2=45.0, m3=1400.0, I=2200.0, k1=3e5, k2=3e5, k3=6e4,
@@ -59,7 +65,9 @@ def main(argv=None):
     model = dict(OTHER_VEHICLE if a.other_vehicle else DEFAULT_MODEL)
     chan_sets = [tuple(c.split(",")) for c in a.channels.split(";")]
     rng = np.random.default_rng(a.seed)
+    t0 = time.perf_counter()
     first_ok = covered = total = 0
+    misses = []
     for k in range(a.n):
         case = rg.draw_sweep_case(rng, chan_sets, noise=not a.no_noise)
         effects, fs, chans = case["effects"], case["fs"], case["channels"]
@@ -86,13 +94,18 @@ def main(argv=None):
         for m in sc["misses"]:
             extra = f" motion noise {level:.1e}" if a.motion_noise else ""
             print(f"run {k}: fs={fs:g} channels={chans}{extra}: {m}", flush=True)
+            misses.append({"run": k, "fs": fs, "channels": list(chans), "miss": str(m)})
     line = (f"{a.n} runs: true causes first in {first_ok}; {covered} of {total} assessable true values "
             f"inside their 95 % intervals ({100.0 * covered / max(total, 1):.0f} %)")
     print(line)
     if a.json:
+        from _common import machine_info
+
         with open(a.json, "w") as fh:
-            json.dump({"args": vars(a), "runs": a.n, "first": first_ok, "covered": covered, "total": total}, fh,
-                      indent=2)
+            json.dump({"benchmark": "diagnose_sweep", "date": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds"),
+                       "args": vars(a), "runs": a.n, "first": first_ok, "covered": covered, "total": total, "misses": misses,
+                       "wall_s": time.perf_counter() - t0, "machine": machine_info()}, fh, indent=2)
+            fh.write("\n")
 
 
 if __name__ == "__main__":

@@ -204,5 +204,5 @@ print("wrote", os.path.join(OUT, "drift_variance.png"))
 #   Monte-Carlo pitch as long as the pitch deviations stay in the linear range (on this class D
 #   road to about 15 s, with deviations of a quarter radian; on class C over the whole 30 s).
 #   Beyond that the noisy paths spread over radians and no first-order method follows them; a
-#   Gaussian moment closure does worse (`benchmarks/moment_closure.py`). There the Monte-Carlo run
+#   Gaussian moment closure does worse (`benchmarks/experiments/moment_closure.py`). There the Monte-Carlo run
 #   is the tool, and the propagated covariance tells when its linear regime ends.

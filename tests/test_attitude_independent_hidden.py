@@ -1,4 +1,4 @@
-"""Hidden attitude causes on runs of the independent generator (benchmarks/independent/gen_attitude.py),
+"""Hidden attitude causes on runs of the independent generator (benchmarks/validation/gen_attitude.py),
 for what the independent attitude sweeps missed: a gyro bias without any white gyro noise, a displaced
 sensor next to a deformation, and an accelerometer-noise-only rigid array (no false alarm).
 
@@ -7,13 +7,10 @@ The seeds (9101-9103) were not used while tuning the detectors (tuning used desi
 """
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
-import gen_attitude as ga  # noqa: E402
+from benchmarks.validation import gen_attitude as ga
 
 from jaxdrift import run_attitude_diagnosis  # noqa: E402
 

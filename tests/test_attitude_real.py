@@ -193,7 +193,7 @@ HARDWARE = ("sample.ulg", "sample_log_small.ulg", "sample_appended_multiple.ulg"
 @pytest.mark.parametrize("name", HARDWARE)
 def test_pyulog_hardware_logs_against_the_independent_estimate(tmp_path, name, as_csv):
     """Each hardware log, read as recorded (the .ulg, and its CSV export with jittered t, gaps and the
-    reference only on its own rows): every axis whose independent bias (benchmarks/real_logs.py,
+    reference only on its own rows): every axis whose independent bias (benchmarks/validation/real_logs.py,
     scipy's Rotation, in docs/validation/real_logs.json) is clear is named within 25 % or inside its
     interval; no absurd scale or bias; the attitude error falls where a bias was found."""
     from jaxdrift import run_attitude_diagnosis

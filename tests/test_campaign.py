@@ -18,8 +18,7 @@ from jaxdrift.campaign import RunSpec, read_manifest
 from jaxdrift.errors import UsageError
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks" / "independent"))
-import gen_campaign as gc  # noqa: E402
+from benchmarks.validation import gen_campaign as gc
 
 
 # ----------------------------------------------------------------------------------- manifest

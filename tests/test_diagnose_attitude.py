@@ -161,14 +161,11 @@ def test_array_nonrigid_beyond_accel_noise(tmp_path):
 
 
 def test_array_accel_noise_on_independent_run(tmp_path):
-    """The same on a run of the independent generator (benchmarks/independent/gen_attitude.py: own
+    """The same on a run of the independent generator (benchmarks/validation/gen_attitude.py: own
     motion, quaternion by DOP853, arrays of 4-8 sensors, 6-9 written digits), never used for tuning."""
     import math
-    import sys
-    from pathlib import Path
 
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
-    import gen_attitude as ga
+    from benchmarks.validation import gen_attitude as ga
 
     from jaxdrift import run_attitude_diagnosis as diagnose
 
@@ -457,11 +454,7 @@ def test_noise_free_array_position_interval_has_the_method_floor(tmp_path):
     interval must hold the truth although no noise sets its width: the method part (written resolution,
     the upstream scale's uncertainty, the fit's stopping step) is its floor; apparent displacements of
     the other sensors of a few 1e-8 m lie below that floor and are not reported."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
-    import gen_attitude as ga
+    from benchmarks.validation import gen_attitude as ga
 
     from jaxdrift import run_attitude_diagnosis as diagnose
     from jaxdrift.diagnosis.attitude._array import SOLVER_STEP

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 
 import numpy as np
 import pytest
@@ -21,8 +20,7 @@ from scipy.integrate import quad_vec
 
 import generators_scipy as gs
 
-sys.path.insert(0, str(__import__("pathlib").Path(__file__).resolve().parents[1] / "benchmarks"))
-from _scoring import score_report  # noqa: E402  (the sweeps' scorer lives with the benchmarks)
+from benchmarks.validation.scoring import score_report  # the sweeps' scorer lives with the benchmarks
 from jaxdrift.diagnosis.vehicle._discretise import _discretise
 from jaxdrift.diagnosis.vehicle._extend import noise_pitch_std
 from jaxdrift.diagnosis.vehicle._pipeline import diagnose_vehicle_run

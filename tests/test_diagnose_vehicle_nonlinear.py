@@ -1,17 +1,14 @@
 """Model adequacy and the nonlinear suspension causes, on runs of the independent generator
-(benchmarks/independent/gen_vehicle.py: scipy DOP853 on its own half-car and road, sharing no code
+(benchmarks/validation/gen_vehicle.py: scipy DOP853 on its own half-car and road, sharing no code
 with jaxdrift), and the tyre lift-off detector on synthetic forces."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
-import gen_vehicle as gen  # noqa: E402
+from benchmarks.validation import gen_vehicle as gen
 
 import jaxdrift  # noqa: E402
 from jaxdrift.diagnosis.vehicle._nonlinear import TyreLiftOff  # noqa: E402
@@ -37,7 +34,7 @@ def _diagnose(tmp_path, case):
 
 
 def test_rear_damper_asymmetry_is_named_with_its_ratio(tmp_path):
-    """The issue's car: rear rebound 1.5x compression, spring travel measured, 2 N force noise: the
+    """A car with rear rebound 1.5x compression, spring travel measured, 2 N force noise: the
     first finding is the rear damper's asymmetry, its estimate within 10 % of the true ratio, its
     correction lowers the residual it is read from, and the extended model carries it."""
     rep = _diagnose(tmp_path, _case([{"cause": "damper_asymmetry", "parameter": "d4", "value": 1.5}], noise=2.0))

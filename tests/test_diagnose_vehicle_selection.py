@@ -1,22 +1,20 @@
 """Vehicle diagnosis with white sensor noise on the measured motion, and selections that forward
 selection alone gets wrong.
 
-Runs from the independent generator (``benchmarks/independent/gen_vehicle.py``: scipy DOP853, its
+Runs from the independent generator (``benchmarks/validation/gen_vehicle.py``: scipy DOP853, its
 own ISO 8608 road, vehicles other than the seed's), with seeds not used for tuning (the diagnosis
 was tuned on design seeds 31 and 777; the committed sweep uses 20261201).
 """
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks" / "independent"))
 
-import gen_vehicle as gv  # noqa: E402
+from benchmarks.validation import gen_vehicle as gv
 
 import jaxdrift  # noqa: E402
 

@@ -1,10 +1,8 @@
 """The optional nonlinear suspension of the half-car: off is the linear model to the bit, on is
-the independent generator's law (benchmarks/independent/gen_vehicle.py, written separately)."""
+the independent generator's law (benchmarks/validation/gen_vehicle.py, written separately)."""
 
 from __future__ import annotations
 
-import sys
-from pathlib import Path
 
 import jax
 import jax.numpy as jnp
@@ -15,8 +13,7 @@ from jaxdrift.models._halfcar import (NonlinearSuspension, contact_forces, equil
                                       force_driven_rhs, road_driven_rhs, spring_forces)
 from jaxdrift.models._params import HalfCarParams
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks" / "independent"))
-import gen_vehicle  # noqa: E402
+from benchmarks.validation import gen_vehicle
 
 jax.config.update("jax_enable_x64", True)
 

@@ -1,4 +1,4 @@
-"""The independent generators of ``benchmarks/independent/`` checked on their own.
+"""The independent generators of ``benchmarks/validation/`` checked on their own.
 
 Oracles: the ISO 8608 line and the shaping filter's exact PSD for the road (Welch estimate within a
 stated statistical bound); jaxdrift's half-car right-hand side and static equilibrium on one
@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -20,11 +19,8 @@ import pytest
 from scipy.signal import welch
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks" / "independent"))
 
-import gen_attitude as ga  # noqa: E402
-import gen_vehicle as gv  # noqa: E402
-import sweep as sw  # noqa: E402
+from benchmarks.validation import gen_attitude as ga, gen_vehicle as gv, sweep as sw
 
 SPEC_CAUSES = {"none", "force_noise", "force_offset", "force_scale", "force_delay", "parameter_error",
                "gyro_noise", "gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position",
@@ -307,7 +303,7 @@ def test_scorer_rules():
     assert s["right"] and not s["coverage"][0]["covered"]  # z = -0.02 lies above -0.025
 
 
-# ----------------------------------------------------------------------------- the issue's targets
+# ----------------------------------------------------------------------------- the targets
 @pytest.mark.slow
 @pytest.mark.parametrize("kind,n", [("vehicle", 14), ("attitude", 10)])
 def test_small_sweep_meets_issue_targets(tmp_path, kind, n):

@@ -111,7 +111,7 @@ def run_csv(tmp_path_factory):
 
 @pytest.mark.parametrize("after_s", [0.0, 0.2, 0.4, 0.6, 0.8])
 def test_paper_interrupted_in_the_first_second(tmp_path, after_s):
-    """Five tries in the first second (the issue: 4 of 5 segmentation faults)."""
+    """Five tries in the first second (four of five used to end in a segmentation fault)."""
     out = tmp_path / "out"
     rc, err = _interrupt(["paper", "--quick", "--out", str(out)], tmp_path, after_s=after_s)
     _assert_clean_exit(rc, err)

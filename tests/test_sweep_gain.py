@@ -7,16 +7,13 @@ effect diagnosed with the force-driven re-simulation: the extended model's pitch
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks" / "independent"))
 
-import gen_vehicle as gv  # noqa: E402
-import sweep as sw  # noqa: E402
+from benchmarks.validation import gen_vehicle as gv, sweep as sw
 
 CASE = {"vehicle_kind": "van", "road_class": "C", "speed": 20.0, "fs": 500.0, "duration": 10.0,
         "channel_set": "all", "precision": 9, "motion_noise": {}, "model": dict(gv.VEHICLES["van"], g=9.81)}

@@ -16,6 +16,11 @@ states (at most 2e-12): ``docs/validation/refactor-equality.json``.
     PYTHONPATH=/path/to/old/checkout python benchmarks/validation/report_equality.py run RUNS old/
     python benchmarks/validation/report_equality.py run RUNS new/
     python benchmarks/validation/report_equality.py compare old/ new/ --json eq.json
+    python benchmarks/validation/report_equality.py score RUNS old/ new/
+
+``score RUNS DIR...`` scores the vehicle reports of each folder against the runs' truth files
+(``NAME_truth.json`` of the independent generator) by the sweep's rules: singles right, pairs
+right, false alarms, true values inside their intervals, and the first finding of each run.
 """
 
 from __future__ import annotations
@@ -101,6 +106,31 @@ def compare(a: str, b: str) -> dict:
     return out
 
 
+def score(runs: str, reports: str) -> dict:
+    """The sweep's scores of the vehicle reports in ``reports`` against the truth files in ``runs``."""
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))))
+    from benchmarks.validation import sweep
+
+    per = {}
+    for tf in sorted(glob.glob(os.path.join(runs, "*_truth.json"))):
+        name = os.path.basename(tf)[:-len("_truth.json")]
+        rp = os.path.join(reports, name + ".json")
+        with open(tf) as fh:
+            truth = json.load(fh)
+        if truth.get("schema", "").startswith("independent.vehicle") and os.path.exists(rp):
+            with open(rp) as fh:
+                per[name] = sweep.score("vehicle", truth["effects"], json.load(fh).get("findings", []))
+    singles = [s for s in per.values() if s["n_systematic"] == 1]
+    pairs = [s for s in per.values() if s["n_systematic"] == 2]
+    free = [s for s in per.values() if s["n_systematic"] == 0]
+    cov = [c for s in per.values() for c in s["coverage"]]
+    return {"runs": len(per), "singles_right": f"{sum(s['right'] for s in singles)}/{len(singles)}",
+            "pairs_right": f"{sum(s['right'] for s in pairs)}/{len(pairs)}",
+            "false_alarms": f"{sum(s['false_alarm'] for s in free)}/{len(free)}",
+            "effects_covered": f"{sum(c['covered'] for c in cov)}/{len(cov)}",
+            "confusion": {k: s["first"] for k, s in per.items()}}
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -111,7 +141,13 @@ def main(argv=None) -> int:
     c.add_argument("a")
     c.add_argument("b")
     c.add_argument("--json", help="write the comparison here")
+    sc = sub.add_parser("score", help="score the vehicle reports of each folder against the truth files in RUNS")
+    sc.add_argument("runs")
+    sc.add_argument("dirs", nargs="+")
     a = ap.parse_args(argv)
+    if a.cmd == "score":
+        print(json.dumps({d: score(a.runs, d) for d in a.dirs}, indent=1))
+        return 0
     if a.cmd == "run":
         run(a.runs, a.out)
         return 0

@@ -192,7 +192,7 @@ class _Loop(NamedTuple):
 _CARRY_STEP_ARGS = True
 
 #: Under vmap, run the batched loop on (n, paths) arrays (True) or let vmap batch the per-path
-#: loop, paths first (False: the former layout, kept for benchmarks/engine_layouts.py).
+#: loop, paths first (False: the former layout, kept for benchmarks/experiments/engine_layouts.py).
 _PATHS_LAST = True
 
 

@@ -47,7 +47,7 @@ class CauseKind(abc.ABC):
     #: differences on the sampled record and weighs it with the model's noise response. Calibrated
     #: on the independent tuning sweep (design seed 31) as the smallest value that puts 95 % of
     #: the true values of right findings inside their intervals
-    #: (``benchmarks/independent/calibrate_intervals.py``, docs/diagnosis.md "Intervals").
+    #: (``benchmarks/validation/calibrate_intervals.py``, docs/diagnosis.md "Intervals").
     method_rel: ClassVar[float] = 0.0
     #: a sensor effect of one logger (a campaign's nuisance) rather than of the vehicle
     is_sensor: ClassVar[bool] = True

@@ -41,7 +41,8 @@ def _force_hf_noise(run) -> tuple[float, float, float]:
 #: noise alone, and the agreement asked beyond the estimates' own scatter (a MAD level from n
 #: differences scatters by about 1.1/sqrt(n); white noise reads the same at every order, within
 #: 3 % at 5000 samples, while a force with real content there reads less at each higher order:
-#: 10.1, 4.0 and 2.5 N at orders 4, 6 and 8 on a noisy 500 Hz independent run)
+#: 9.8, 3.8 and 2.5 N at orders 4, 6 and 8 on an independent 500 Hz run with 2 N of noise,
+#: benchmarks/results/diagnosis-noise-checks.json)
 WHITE_ORDERS = (4, 6, 8)
 WHITE_TOL = 0.1
 

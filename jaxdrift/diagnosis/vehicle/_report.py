@@ -192,7 +192,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
             # anti-aliasing filter, content above it folds into the low band as an error on the
             # samples that no model tells from noise (measured on an independent noise-free 250 Hz
             # run: 1.04 N here, 0.001 N for the same run sampled at 1000 Hz and anti-aliased down
-            # to 250 Hz; benchmarks/independent/aliasing_floor.py). The level is then an upper
+            # to 250 Hz; benchmarks/validation/aliasing_floor.py). The level is then an upper
             # bound, and its interval reaches down to zero.
             lo = 0.0
             src += (f"; the forces' 4th differences give {hf:.3g} N, {hf / max(sigma, 1e-300):.3g}x "
