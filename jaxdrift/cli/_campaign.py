@@ -84,7 +84,7 @@ def _jax_distributed(args, UsageError) -> int:
 
 
 def run_campaign(args) -> int:
-    from ..errors import InputError, UsageError
+    from ..errors import UsageError
     from . import _common as c
 
     if args.workers is not None and args.scheduler:
@@ -97,19 +97,17 @@ def run_campaign(args) -> int:
 
     jax.config.update("jax_enable_x64", True)
     pid = _jax_distributed(args, UsageError)
-    try:
+    def run_campaign():
         from ..campaign import campaign
 
-        doc = campaign(args.runs, model=args.model, out=args.out, manifest=args.manifest, workers=args.workers,
-                       scheduler=args.scheduler, durability=args.durability, paths=args.paths, seed=args.seed,
-                       basquin_k=args.basquin_k, param_draws=args.param_draws, reading=c.run_options(args),
-                       figures=not args.no_figures, progress=c.VERBOSITY >= 1, write=pid == 0)
-    except (UsageError, KeyboardInterrupt):
-        raise
-    except InputError as e:
-        raise UsageError(str(e)) from None
-    except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
-        return c.internal_failure("campaign")
+        return campaign(args.runs, model=args.model, out=args.out, manifest=args.manifest, workers=args.workers,
+                        scheduler=args.scheduler, durability=args.durability, paths=args.paths, seed=args.seed,
+                        basquin_k=args.basquin_k, param_draws=args.param_draws, reading=c.run_options(args),
+                        figures=not args.no_figures, progress=c.VERBOSITY >= 1, write=pid == 0)
+
+    doc, rc = c.guarded("campaign", run_campaign)
+    if rc:
+        return rc
     runs = doc["runs"]
     failed = [r for r in runs if r["status"] != "ok"]
     for r in failed:

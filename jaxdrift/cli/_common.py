@@ -149,6 +149,21 @@ def install_interrupt_handler() -> None:
         os.write(2, b"jaxdrift: interrupt handler ready\n")
 
 
+def guarded(command: str, fn):
+    """``(fn(), 0)``; bad input it raises (InputError) becomes a usage error (exit 2), and any other
+    failure is ours: ``(None, 1)`` after :func:`internal_failure`."""
+    from ..errors import InputError, UsageError
+
+    try:
+        return fn(), 0
+    except (UsageError, KeyboardInterrupt):
+        raise
+    except InputError as e:
+        raise UsageError(str(e)) from None
+    except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
+        return None, internal_failure(command)
+
+
 def internal_failure(command: str, what: str = "", bar=None) -> int:
     """Anything but bad input is our failure, not the user's: the traceback on stderr, exit 1."""
     import traceback

@@ -104,7 +104,7 @@ def run_durability(args) -> int:
     import jax
 
     jax.config.update("jax_enable_x64", True)
-    try:
+    def analyse():
         from ..durability import durability_analysis
         from ..durability._outputs import write_outputs
 
@@ -113,13 +113,12 @@ def run_durability(args) -> int:
                                   report=report, progress=not args.quiet and c.VERBOSITY >= 1)
         res.summary["provenance"]["reading"] = {k: v for k, v in run.info.items() if k != "quantum"}
         res.summary["provenance"]["options"].update(c.run_options(args))
-        written = write_outputs(res, args.out, window=args.window)
-    except (UsageError, KeyboardInterrupt):
-        raise
-    except InputError as e:
-        raise UsageError(str(e)) from None
-    except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
-        return c.internal_failure("durability")
+        return res, write_outputs(res, args.out, window=args.window)
+
+    out, rc = c.guarded("durability", analyse)
+    if rc:
+        return rc
+    res, written = out
     s = res.summary
     for v, r in s["damage_ratio_to_stabilised"].items():
         band = s["monte_carlo"].get("damage_ratio_quantiles", {}).get(v)

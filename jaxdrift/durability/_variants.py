@@ -110,6 +110,7 @@ class SectionForces(eqx.Module):
     m: int = eqx.field(static=True)
     span: tuple = eqx.field(static=True)
     has_pitch: bool = eqx.field(static=True)
+    has_drift: bool = eqx.field(static=True, default=False)  # a correction drifts (corr[3] != 0)
 
     def __call__(self, key, idx, sigma):
         n = self.ts.shape[0]
@@ -140,9 +141,9 @@ class SectionForces(eqx.Module):
 
             f_st, lam_st, c_st = stabilised(p, sig)
             corrected = remove_input_effects(meas, self.h, self.corr[0], self.corr[1], self.corr[2])
-            # a scale drifting over the run (Corrections: 1 / (1 + drift (t - t_mid))); 1 without
-            t_rel = jnp.arange(meas.shape[0], dtype=meas.dtype)[:, None] * self.h - 0.5 * (self.span[1] - self.span[0])
-            corrected = corrected / (1.0 + self.corr[3][None, :] * t_rel)
+            if self.has_drift:  # a scale drifting over the run (Corrections: 1 / (1 + drift (t - t_mid)))
+                t_rel = jnp.arange(meas.shape[0], dtype=meas.dtype)[:, None] * self.h - 0.5 * (self.span[1] - self.span[0])
+                corrected = corrected / (1.0 + self.corr[3][None, :] * t_rel)
             f_ex, lam_ex, c_ex = stabilised(self.params_ext, SampledSignal(self.t0, self.h, corrected))
             cols += [f_st, f_ex]
             code = jnp.maximum(code, jnp.maximum(c_st, c_ex))
@@ -198,4 +199,5 @@ def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corre
         pitch=jnp.asarray(pitch if has_pitch else np.zeros((t.size, 3)), jnp.float64),
         ts=jnp.asarray(t), params=to_p(params), params_ext=to_p(params_ext), corr=jnp.asarray(corr),
         spring=jnp.asarray([spring["k_rot"], spring["d_rot"]], jnp.float64),
-        t0=float(t[0]), dt=dt, h=dt / m, m=m, span=(float(t[0]), float(t[-1])), has_pitch=has_pitch)
+        t0=float(t[0]), dt=dt, h=dt / m, m=m, span=(float(t[0]), float(t[-1])), has_pitch=has_pitch,
+        has_drift=bool(np.any(corr[3] != 0.0)))

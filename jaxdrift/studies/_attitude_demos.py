@@ -18,7 +18,10 @@ def _finish(plt, fig, ax, out, name, xlabel, ylabel, title, legend_size, log_gri
     ax.set_ylabel(ylabel)
     ax.set_title(title[0], fontsize=title[1])
     ax.legend(fontsize=legend_size)
-    ax.grid(True, which="both", alpha=0.3) if log_grid else ax.grid(alpha=0.3)
+    if log_grid:
+        ax.grid(True, which="both", alpha=0.3)
+    else:
+        ax.grid(alpha=0.3)
     fig.tight_layout()
     fig.savefig(os.path.join(out, name), dpi=90)
     plt.close(fig)

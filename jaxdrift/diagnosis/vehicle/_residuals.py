@@ -319,11 +319,12 @@ class ResidualPipeline:
         the (shifted) measured signal: only a new delay needs a new spline.
         """
         coeffs, first = {}, {}
+        # a scale changing over the run is not a constant factor on the coefficients
+        drifting = self.corrected_forces(corr, smooth) if any(c.drift != 0.0 for _, c in corr.items()) else {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
             if c.drift != 0.0:
-                # a scale changing over the run is not a constant factor on the coefficients
-                f = self.corrected_forces(corr, smooth)[ch]
+                f = drifting[ch]
                 coeffs[ch], first[ch] = _poly_coeffs(CubicSpline(self.tauf, f)), float(f[0])
                 continue
             key = ("coef", ch, smooth, float(c.delay))
