@@ -43,8 +43,8 @@ def test_rear_damper_asymmetry_is_named_with_its_ratio(tmp_path):
     assert f["estimate"] == pytest.approx(1.5, rel=0.1)
     assert f["residual"]["rms_with"] < f["residual"]["rms_without"]
     assert rep["extended_model"]["nonlinear"]["damper_ratio4"] == pytest.approx(f["estimate"])
-    # confirmed on the held-out half of the record, and counted in the joint interval level
-    assert f["confirmed"] is True and "second half" in f["evidence"]
+    # confirmed out of sample (alternate eighths of the record), and counted in the joint interval level
+    assert f["confirmed"] is True and "out of sample" in f["evidence"]
     assert f["interval_level"]["findings"] >= 2
     # the run shows it: no 'could not show' for it
     assert not any("damper_asymmetry[d4]" in n for n in rep["notes"] if n.startswith("Could not show"))
@@ -52,16 +52,15 @@ def test_rear_damper_asymmetry_is_named_with_its_ratio(tmp_path):
 
 def test_bump_stop_size_is_the_generators(tmp_path):
     """A stop 8x the rear spring reached on 3 % of the samples (spring travel measured, no noise):
-    the stiffness is read off the travel of the model that has the stop, not the linear model's
-    (which overshoots the stop by half again and gives a sixth of the stiffness), and matches the
-    generator's k_b within 5 % (what is left: the stop's travel, a quantile of the model's travel
-    where the generator takes one of a linear pre-run)."""
+    the stiffness is read off the measured travel, not the linear model's (which overshoots the
+    stop by half again and gives a sixth of the stiffness), with the stop's travel fitted, and
+    matches the generator's k_b within 1 %."""
     case = _case([{"cause": "bump_stop", "parameter": "k4", "share": 0.03, "ratio": 8.0}], duration=8.0)
     rep = _diagnose(tmp_path, case)
     truth = case["effects"][0]["value"]
     f = rep["findings"][0]
     assert (f["cause"], f["parameter"]) == ("bump_stop", "k4"), rep["findings"]
-    assert f["estimate"] == pytest.approx(truth, rel=0.05)
+    assert f["estimate"] == pytest.approx(truth, rel=0.01)
     assert rep["extended_model"]["nonlinear"]["stop_k4"] == pytest.approx(f["estimate"])
 
 
@@ -102,7 +101,12 @@ def test_lift_off_detector_on_synthetic_forces(seed):
     assert 0.01 < share < 0.06
     det = TyreLiftOff("f1").detect(np.maximum(f, 0.0) + 2.0 * rng.standard_normal(n), 2.0)
     assert det is not None and det["interval"][0] <= share <= det["interval"][1]
+    # a force-noise level read off a force with real content near the Nyquist frequency is only
+    # an upper bound (30x here): the floor's own spread sets the window, and the lift-off is found
+    det = TyreLiftOff("f1").detect(np.maximum(f, 0.0) + 2.0 * rng.standard_normal(n), 60.0)
+    assert det is not None and det["interval"][0] <= share <= det["interval"][1]
     assert TyreLiftOff("f1").detect(f + 2.0 * rng.standard_normal(n), 2.0) is None
+    assert TyreLiftOff("f1").detect(f + 2.0 * rng.standard_normal(n), 60.0) is None
     near = 4000.0 + (f - 4000.0) * (4000.0 - 120.0) / (4000.0 - f.min())
     assert TyreLiftOff("f1").detect(near + 2.0 * rng.standard_normal(n), 2.0) is None
     assert TyreLiftOff("f1").detect(_smooth_force(n, rng, 4000.0, 500.0), 2.0) is None
@@ -146,3 +150,51 @@ def test_could_not_show_follows_the_two_conditions_of_a_finding():
     assert notes(tiny_se, 1000.0) == ""
     assert math.isinf(A.detection_limit(0, {"moment": {"tests": [(0, 0, float("nan"), dof, 0, 0)],
                                                        "S": np.ones((n, 1))}}, {"moment": 1.0}, m))
+
+
+def test_extra_spring_forces_add_their_signature_and_leave_the_original_alone(tmp_path):
+    """``ResidualPipeline.with_extra``: the residuals of a model carrying extra spring forces are the
+    linear model's plus the channels' response to those forces, computed apart
+    (``_nonlinear.signatures``); the original pipeline is unchanged and ``with_extra(None)`` gives it
+    back."""
+    from jaxdrift.diagnosis.vehicle._nonlinear import signatures
+    from jaxdrift.diagnosis.vehicle._residuals import ResidualPipeline
+    from jaxdrift.io._corrections import NO_CORRECTION
+
+    case = _case([], channels="beta_z3_s", duration=3.0)
+    paths = gen.make_run(case, str(tmp_path), "run")
+    run = jaxdrift.read_vehicle_run(paths["csv"])
+    model = jaxdrift.read_model(paths["model"])
+    pipe = ResidualPipeline(run)
+    rng = np.random.default_rng(3)
+    extra = (50.0 * rng.standard_normal(pipe.nf), 30.0 * rng.standard_normal(pipe.nf))
+    base = pipe.residuals(model, NO_CORRECTION).channels
+    with_x = pipe.with_extra(extra).residuals(model, NO_CORRECTION).channels
+    sig = signatures(pipe, model, extra)
+    assert set(sig) == set(base) - {"static"}
+    for nm in sig:
+        np.testing.assert_allclose(with_x[nm], base[nm] + sig[nm], rtol=1e-12, atol=1e-9)
+        assert np.max(np.abs(sig[nm])) > 0
+    assert pipe.extra is None
+    again = pipe.with_extra(extra).with_extra(None).residuals(model, NO_CORRECTION).channels
+    for nm in base:
+        np.testing.assert_array_equal(again[nm], base[nm])
+
+
+@pytest.mark.slow
+def test_a_stop_does_not_hide_a_force_offset(tmp_path):
+    """A stop 5x the front spring on 3 % of the samples and an offset of 40 N on f2, pitch and its
+    rate measured only: the linear causes are chosen on a model that has the stop, so the offset is
+    found (on the linear model alone a moved centre of gravity takes the stop's moment and the
+    offset is not seen) and both lead the report."""
+    case = _case([{"cause": "bump_stop", "parameter": "k3", "share": 0.03, "ratio": 5.0},
+                  {"cause": "force_offset", "channel": "f2", "value": 40.0}], channels="beta_rate",
+                 duration=12.0, noise=2.0)
+    rep = _diagnose(tmp_path, case)
+    first = {(f["cause"], f.get("parameter") or f.get("channel")) for f in rep["findings"][:2]}
+    assert first == {("bump_stop", "k3"), ("force_offset", "f2")}, rep["findings"][:3]
+    off = next(f for f in rep["findings"] if f["cause"] == "force_offset")
+    assert off["interval"][0] <= 40.0 <= off["interval"][1]
+    # the stop's travel is not measured here: the stiffness interval spans the travel's profile
+    stop = rep["findings"][0] if rep["findings"][0]["cause"] == "bump_stop" else rep["findings"][1]
+    assert stop["interval"][0] <= case["effects"][0]["value"] <= stop["interval"][1]

@@ -15,9 +15,13 @@ when its t statistic passes ``ALPHA`` (two-sided) Bonferroni-divided by the numb
 terms, and it matters when the part it explains is at least ``PRACTICAL`` of the channel's
 dynamic spring-force scale.
 
-What fails is named: by the catalogue cause when the term is one (with its estimate, interval,
-evidence sentence and correction), else a ``model_form`` finding with the channel, band, state and
-size. Where a catalogue cause of the largest size engineers meet would not pass, the notes say the
+The states are the fitted model's, with the measured spring travel where there is one. What fails
+is named, strongest first and each further term tested again with those named as nuisance columns:
+by the catalogue cause when the term is one (with its estimate, interval, evidence sentence and
+correction; a bump stop's travel fitted with its stiffness, ``_stop_fit``; confirmed out of sample
+on alternate blocks of the record, ``_held_out_check``), else a ``model_form`` finding with the
+channel, band, state and size. The confirmed causes' forces (``extra``) let the linear causes be
+chosen again on a model that has them (``_pipeline.select_with_form``). Where a catalogue cause of the largest size engineers meet would not pass, the notes say the
 run could not show it and name the channel that would. Tyre lift-off is read from the forces
 (``_nonlinear.TyreLiftOff``).
 """
@@ -170,15 +174,16 @@ def assess_model_form(prob, p_ext: dict, corr_ext: dict, res1, dynamic: bool) ->
     if not dynamic or not names:
         notes.append("Could not show: damper_asymmetry, progressive_spring, bump_stop (no pitch, heave or "
                      "spring travel measured; spring travel s1/s2 would show them).")
-        return {"findings": findings, "notes": notes, "correction": correction}
+        return {"findings": findings, "notes": notes, "correction": correction, "extra": None}
     st = model_states(prob.pipe, p_ext, corr_ext)
     terms = catalogue()
     tests = _tests(prob, p_ext, st, res1, terms)
     scales = _scales(prob, st)
     m = len(tests) * len(terms)
-    findings += _named(prob, st, terms, tests, scales, m, correction)
+    named, extra = _named(prob, st, terms, tests, scales, m, correction)
+    findings += named
     notes += _could_not_show(prob, st, terms, tests, scales, m)
-    return {"findings": findings, "notes": notes, "correction": correction}
+    return {"findings": findings, "notes": notes, "correction": correction, "extra": extra}
 
 
 def _significant(terms, tests, scales, m, skip=()):
@@ -199,34 +204,55 @@ def _significant(terms, tests, scales, m, skip=()):
     return sorted(hits, key=lambda h: -h[0])
 
 
-def _named(prob, st, terms, tests, scales, m, correction) -> list[dict]:
+def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], tuple | None]:
     """Up to one finding per axle: the strongest significant term, by its catalogue cause when it
-    is one and its estimate lies in the cause's range, else ``model_form``."""
-    out, used_axles = [], set()
+    is one and its estimate lies in the cause's range, else ``model_form``. Also the extra spring
+    forces (front, rear; fine grid) of the confirmed catalogue causes, ``None`` where there is none."""
+    out, used_axles, taken = [], set(), []
+    extra = None
+    fs = 1.0 / prob.pipe.h
     for z, nm, j, th, se, size in _significant(terms, tests, scales, m):
         c = terms[j]
         if c.axle in used_axles:
             continue
-        used_axles.add(c.axle)
         d = tests[nm]
+        if taken:
+            # tested again with the terms already named as nuisance columns: a stop on one axle
+            # also shows in the moment, where another axle's term can take part of it
+            N2 = np.column_stack([d["N"], d["S"][:, taken]])
+            t, th, se, dof, *_ = _channel_test(d["y"], N2, d["S"][:, [j]], fs, d["fc"])[0]
+            if (not np.isfinite(t) or 2 * scipy.stats.t.sf(abs(t), dof) > ALPHA / m
+                    or _rms(th * d["S"][:, j]) < PRACTICAL * scales[nm]):
+                continue
+            z = abs(t)
+        used_axles.add(c.axle)
+        taken.append(j)
         y = d["y"]
         before, after = d["tests"][j][4:6]
         lo, hi = c.bounds(st)
         key, phrase = state_words(c)
         band = [0.0, float(d["fc"])]
         if not isinstance(c, StateTerm) and lo < th < hi:
-            th, se, st_c = _refine(prob, st, c, d, th, se)
+            if isinstance(c, BumpStop):
+                c, th, se, st_c, th_iv = _stop_fit(prob, st, c, d)
+            else:
+                th, se, st_c = _refine(prob, st, c, d, th, se)
+                th_iv = (th - 1.96 * se, th + 1.96 * se)
             th = min(max(th, lo), hi)
             est = c.to_estimate(th, st)
-            iv = sorted((c.to_estimate(max(th - 1.96 * se, lo), st), c.to_estimate(min(th + 1.96 * se, hi), st)))
+            iv = sorted((c.to_estimate(max(th_iv[0], lo), st), c.to_estimate(min(th_iv[1], hi), st)))
             ev = (f"{c.describe(th, st)[0].upper()}{c.describe(th, st)[1:]}: the {_WORDS[nm]} left after the "
                   f"fit grows with {phrase} (compared below {band[1]:.3g} Hz, z = {z:.1f}); with the correction its "
                   f"RMS in that band {'falls' if after < before else 'rises'} from {before:.4g} to {after:.4g} {_UNITS[nm]}")
             # in the extended model (``extended_model.nonlinear``); its check is the adequacy test
-            held = _held_out_check(d, j, prob.pipe)
+            f_c = c.force(st_c)
+            zero = np.zeros_like(f_c)
+            sig = signatures(prob.pipe, st.p, (f_c, zero) if c.axle == 0 else (zero, f_c))
+            held = _held_out_check(d, -_kept(prob, sig[nm], nm), prob.pipe)
             ok = held[1] < held[0]
-            ev += (f"; fitted on the first half of the record, the correction {'lowers' if ok else 'does not lower'} "
-                   f"that residual in the second half ({held[0]:.4g} to {held[1]:.4g} {_UNITS[nm]})")
+            ev += (f"; fitted on alternate eighths of the record and checked on the others, the correction "
+                   f"{'lowers' if ok else 'does not lower'} that residual out of sample ({held[0]:.4g} to "
+                   f"{held[1]:.4g} {_UNITS[nm]})")
             if not ok:
                 ev += "; not confirmed, left out of the extended model"
             f = {"cause": c.name, "parameter": c.target, "confirmed": bool(ok), "estimate": float(est), "unit": c.unit,
@@ -235,6 +261,8 @@ def _named(prob, st, terms, tests, scales, m, correction) -> list[dict]:
                               "band_hz": band}}
             if ok:
                 correction.update(c.correction(th, st))
+                extra = [np.zeros_like(st.u[0]), np.zeros_like(st.u[0])] if extra is None else extra
+                extra[c.axle] = extra[c.axle] + th * c.force(st_c)
         else:
             ev = (f"The {_WORDS[nm]} left after the fit depends on {phrase} (compared below {band[1]:.3g} Hz, "
                   f"z = {z:.1f}): a part of RMS {size:.4g} {_UNITS[nm]} ({100 * size / max(_rms(y), 1e-300):.3g} % of "
@@ -247,7 +275,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> list[dict]:
                  "band_hz": band, "estimate": float(size), "unit": _UNITS[nm], "z": float(z),
                  "confirmed": False, "evidence": ev + "."}
         out.append(f)
-    return out
+    return out, (None if extra is None else tuple(extra))
 
 
 #: fixed-point iterations of the states under a named cause's force, and their relaxation
@@ -261,11 +289,14 @@ def _refine(prob, st, c, d, th, se):
     model's travel comes out too small (a stop 10x the spring: half or less). Iterated to the fixed
     point: the travel the model moves with ``theta`` times the cause's force at that travel (relaxed,
     as a stiff stop's loop gain is near one), the cause's signature at that travel, ``theta``
-    refitted. A bump stop keeps the travel of the linear states (its definition). Returns
+    refitted. A bump stop keeps the travel of the linear states (its definition). Where the axle's
+    spring travel is measured the states already hold it and nothing is iterated. Returns
     ``(theta, se, states)``."""
     pipe, p = prob.pipe, st.p
     if isinstance(c, BumpStop):
         c.fix_travel(st)
+    if pipe.has_s[c.axle]:  # the travel is measured (``model_states``): nothing to iterate
+        return th, se, st
     fs = 1.0 / pipe.h
     n = len(st.u[0])
     zero = np.zeros(n)
@@ -289,20 +320,96 @@ def _refine(prob, st, c, d, th, se):
     return th, se, cur
 
 
-def _held_out_check(d: dict, j: int, pipe) -> tuple[float, float]:
-    """RMS of the channel's residual in the second half of the record, in the adequacy band, left by
-    the nuisance columns fitted on the first half without and with term ``j`` (an out-of-sample
-    check of the term's correction: in-sample, adding a column always lowers the residual)."""
+#: the stop travels searched, as quantiles of the linear model's travel, and the steps of the search
+STOP_Q = (0.85, 0.999)
+STOP_GRID, STOP_STEPS = 40, 14
+
+
+def _stop_t(prob, st, d, axle: int, q: float) -> tuple[float, float, float]:
+    """(t, theta, se) of a stop at the travel quantile ``q`` in the channel of ``d``."""
+    b = BumpStop(axle, q)
+    f = b.force(st)
+    zero = np.zeros_like(f)
+    sig = signatures(prob.pipe, st.p, (f, zero) if axle == 0 else (zero, f))
+    S = -_kept(prob, sig[d["name"]], d["name"])[:, None]
+    t, th, se, *_ = _channel_test(d["y"], d["N"], S, 1.0 / prob.pipe.h, d["fc"])[0]
+    return float(t), float(th), float(se)
+
+
+def _stop_fit(prob, st, c, d):
+    """A stop's travel fitted with its stiffness: the travel is the one whose stop explains the
+    channel best (largest |t|: a grid of ``STOP_GRID`` quantiles in ``STOP_Q``, then a golden-section
+    search between the best one's neighbours); the stiffness interval is the union of those at the
+    ends of the travel's 95 % profile interval (where t^2 has fallen by 3.84) and at the best one,
+    each at the fixed point of the states (``_refine``): the stiffness hangs on the travel (a stop
+    further out needs a stiffer one to push the same force), so an interval at the best travel alone
+    is far too narrow. Returns ``(cause, theta, se, states, (lo, hi))``."""
+    axle = c.axle
+    qs = np.linspace(STOP_Q[0], STOP_Q[1], STOP_GRID)
+    t2 = lambda q: _stop_t(prob, st, d, axle, q)[0] ** 2  # noqa: E731
+    vals = [t2(q) for q in qs]
+    i = int(np.argmax(vals))
+    a, b = qs[max(i - 1, 0)], qs[min(i + 1, len(qs) - 1)]
+    g = (math.sqrt(5) - 1) / 2
+    x1, x2 = b - g * (b - a), a + g * (b - a)
+    f1, f2 = t2(x1), t2(x2)
+    for _ in range(STOP_STEPS):
+        if f1 > f2:
+            b, x2, f2 = x2, x1, f1
+            x1 = b - g * (b - a)
+            f1 = t2(x1)
+        else:
+            a, x1, f1 = x1, x2, f2
+            x2 = a + g * (b - a)
+            f2 = t2(x2)
+    q_best, best = (x1, f1) if f1 > f2 else (x2, f2)
+    if vals[i] > best:
+        q_best, best = float(qs[i]), vals[i]
+
+    def edge(lo, hi):  # bisection for t^2 = best - 3.84 between an inside (lo) and an outside (hi) travel
+        if t2(hi) >= best - 3.84:
+            return hi
+        for _ in range(STOP_STEPS):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if t2(mid) >= best - 3.84 else (lo, mid)
+        return lo
+
+    ends = [edge(q_best, STOP_Q[0]), edge(q_best, STOP_Q[1])]
+    out, ivs = None, []
+    for q in [q_best] + ends:
+        cq = BumpStop(axle, float(q))
+        t, th, se = _stop_t(prob, st, d, axle, float(q))
+        th, se, st_c = _refine(prob, st, cq, d, th, se)
+        ivs += [th - 1.96 * se, th + 1.96 * se]
+        if out is None:
+            out = (cq, th, se, st_c)
+    return (*out, (min(ivs), max(ivs)))
+
+
+#: blocks of the held-out check: alternate blocks are fitted, the others checked, and back
+HELD_BLOCKS = 8
+
+
+def _held_out_check(d: dict, col: np.ndarray, pipe) -> tuple[float, float]:
+    """RMS of the channel's residual out of sample, in the adequacy band, left by the nuisance
+    columns without and with the term's column ``col`` (an out-of-sample check of the term's
+    correction: in-sample, adding a column always lowers the residual). The record is cut into
+    ``HELD_BLOCKS`` blocks; the columns are fitted on the even blocks and checked on the odd ones,
+    and the other way round. Alternate blocks, not halves: a stop reached only in the second half
+    of a short run would otherwise be fitted where it never acts."""
     fs = 1.0 / pipe.h
-    y, S = _prep(d["y"], fs, d["fc"]), _prep(d["S"][:, j], fs, d["fc"])
+    y, S = _prep(d["y"], fs, d["fc"]), _prep(col, fs, d["fc"])
     N = _prep(d["N"], fs, d["fc"])
     n = len(y)
     N = np.column_stack([np.ones(n), np.linspace(-1.0, 1.0, n), N])
-    h = n // 2
+    even = (np.arange(n) * HELD_BLOCKS // n) % 2 == 0
     out = []
     for X in (N, np.column_stack([N, S])):
-        coef, *_ = np.linalg.lstsq(X[:h], y[:h], rcond=None)
-        out.append(_rms(y[h:] - X[h:] @ coef))
+        sse = 0.0
+        for fit in (even, ~even):
+            coef, *_ = np.linalg.lstsq(X[fit], y[fit], rcond=None)
+            sse += float(np.sum((y[~fit] - X[~fit] @ coef) ** 2))
+        out.append(math.sqrt(sse / n))
     return out[0], out[1]
 
 

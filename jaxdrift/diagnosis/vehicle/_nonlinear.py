@@ -264,7 +264,8 @@ def catalogue() -> list[NonlinearCause]:
 
 # ----------------------------------------------------------------------------- states, signatures
 def model_states(pipe, p: dict, corr: dict) -> States:
-    """Spring travel and rate of the fitted model driven by the corrected forces (fine grid)."""
+    """Spring travel and rate of the fitted model driven by the corrected forces (fine grid); the
+    measured travel where there is one."""
     forces_c, _ = pipe._corrected_coeffs(corr, False)
     f3, f4, x = pipe.simulate(p, None, forces_c=forces_c)
     a, b = p["a"], p["b"]
@@ -278,6 +279,10 @@ def model_states(pipe, p: dict, corr: dict) -> States:
         s, ds = (x[:, 0], x[:, 1]), (x[:, 2], x[:, 3])
     g, m3 = p["g"], p["m3"]
     s0 = (a * m3 * g / (a + b) / p["k3"], b * m3 * g / (a + b) / p["k4"])
+    # where the spring travel is measured the terms take it: a spring law acts on the real travel,
+    # which the linear model overshoots wherever the real law is stiffer (a stop: 61 mm of model
+    # travel where the stop held the spring at 52 mm)
+    s = tuple(pipe.s_f[f"s{i + 1}"] if pipe.has_s[i] else s[i] for i in (0, 1))
     n = len(s[0])
     return States(tuple(np.asarray(s[i][:n]) - s0[i] for i in (0, 1)), tuple(np.asarray(ds[i][:n]) for i in (0, 1)),
                   s0, p)
@@ -342,7 +347,8 @@ class TyreLiftOff:
     samples at the floor, where a force that never touches zero thins out towards its minimum.
 
     Test: with ``m`` the 0.1 % quantile of the force and ``w = 3 sigma + 0.005 F_s`` (sigma the
-    force noise, F_s the static load), the samples in ``[m, m + w]`` must be at least ``MIN_SHARE``
+    force noise, or the spread (MAD) of the samples within ``NEAR_SHARE`` F_s of ``m`` where that is
+    lower; F_s the static load), the samples in ``[m, m + w]`` must be at least ``MIN_SHARE``
     of the record in at least ``MIN_STRETCHES`` separate stretches and more than ``ATOM_RATIO``
     times those in ``[m + w, m + 2 w]``, nothing may lie more than ``w`` below ``m`` (a floor: a
     force that only dips towards zero goes on below its 0.1 % quantile), and ``m`` must be within
@@ -353,6 +359,8 @@ class TyreLiftOff:
     ATOM_RATIO = 3.0
     FLOOR_SHARE = 0.15
     MIN_STRETCHES = 5
+    #: the samples within this share of the static load above the floor give the noise there
+    NEAR_SHARE = 0.02
 
     def __init__(self, channel: str):
         self.channel = channel
@@ -363,6 +371,11 @@ class TyreLiftOff:
         if fs0 <= 0:
             return None
         m = float(np.quantile(f, 0.001))
+        # the noise at the floor itself: the forces' top-band level is only an upper bound where
+        # they carry real content there (a rough road at a low rate: 24 N read where 0.8 N was
+        # written), and so wide a window takes in the steep flanks of every lift-off
+        near = f[f <= m + self.NEAR_SHARE * fs0]
+        sigma = min(sigma, 1.4826 * float(np.median(np.abs(near - np.median(near)))))
         w = 3.0 * sigma + 0.005 * fs0
         if abs(m) > self.FLOOR_SHARE * fs0 or float(f.min()) < m - w:
             return None

@@ -18,6 +18,53 @@ from ._residuals import ResidualPipeline
 from ._select import _select
 
 
+def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem, object]:
+    """The linear causes, chosen once the model's form is right.
+
+    A nonlinear suspension force the model lacks leaves a residual that linear causes partly take
+    (a bump stop read as a stiffer spring, a softer damper and a moved centre of gravity), and once
+    they are fitted the adequacy test has too little left to see. So the adequacy test runs on
+    the fitted model and, where it finds no catalogue cause there, on the model with no causes;
+    the linear causes are then chosen again on a comparison whose model carries the confirmed
+    nonlinear cause's force (``ResidualPipeline.with_extra``). That choice is kept when the
+    adequacy test of its fit names the same nonlinear causes again; otherwise the first one
+    stands. Returns the problem (carrying the force where the second choice is kept) and the
+    selection."""
+    sel = _select(prob, log=log)
+    if len(sel.fit.r) <= 2:
+        return prob, sel
+    model, pipe = prob.model, prob.pipe
+
+    def form_of(causes, theta):
+        p, corr = _apply(model, causes, theta)
+        return assess_model_form(prob, p, corr, pipe.residuals(p, corr), True)
+
+    def named(form, confirmed=True):
+        return {(f["cause"], f["parameter"]) for f in form["findings"]
+                if "parameter" in f and (f.get("confirmed") or not confirmed)}
+
+    form = form_of(sel.fit.causes, sel.fit.theta)
+    if form["extra"] is None and sel.fit.causes:
+        form = form_of([], [])
+    if form["extra"] is None:
+        return prob, sel
+    prob_x = prob.with_pipe(pipe.with_extra(form["extra"]))
+    sel_x = _select(prob_x, log=log)
+    form_x = form_of(sel_x.fit.causes, sel_x.fit.theta)
+    extra_x = form_x["extra"] if form_x["extra"] is not None else form["extra"]
+    # kept when the adequacy test of the new fit still names the nonlinear causes (their
+    # correction confirmed out of sample or not): the first choice's linear causes were chosen on
+    # a model that lacks them, the new ones on a model that has them
+    kept = named(form) <= named(form_x, confirmed=False)
+    if log is not None:
+        log.append(f"linear causes chosen again with {sorted(named(form))}: {[c.label for c in sel_x.fit.causes]}, "
+                   f"first choice {[c.label for c in sel.fit.causes]}: "
+                   + ("kept" if kept else "the nonlinear causes are not named again, the first choice stands"))
+    if not kept:
+        return prob, sel
+    return prob.with_pipe(pipe.with_extra(extra_x)), sel_x
+
+
 def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=None,
                          *, with_simulation: bool = True, log: list | None = None) -> dict:
     """Diagnose a vehicle run against a model; returns the report (``docs/measured-data.md``).
@@ -30,7 +77,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
     pipe = prob.pipe  # with the channels it compares band-limited
-    sel0 = _select(prob, log=log)
+    prob, sel0 = select_with_form(prob, log)  # prob carries a nonlinear cause's force where one is found
     sel, held_out = confirm_corrections(prob, sel0, log)
     resim_out = []
     if with_simulation:
@@ -38,9 +85,16 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     fit = sel.fit
     dynamic = len(fit.r) > 2
 
-    # residuals before / after (physical units)
-    res0 = pipe.residuals(model, NO_CORRECTION)
+    # the adequacy test of the fitted linear model (_adequacy): the nonlinear causes and model-form
+    # findings lead, as the linear findings hold only if the model's form does; their intervals
+    # count in the joint level
+    lin = pipe.with_extra(None)
     p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
+    form = assess_model_form(prob.with_pipe(lin), p_ext, corr_ext, lin.residuals(p_ext, corr_ext), dynamic)
+    # residuals before (the model) / after (the extended model, its nonlinear causes included)
+    res0 = lin.residuals(model, NO_CORRECTION)
+    prob = prob.with_pipe(lin.with_extra(form["extra"]))
+    pipe = prob.pipe
     res1 = pipe.residuals(p_ext, corr_ext)
 
     noise = noise_level(prob, sel, corr_ext, p_ext)
@@ -60,9 +114,6 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         src = noise["source"]
         findings.append(FORCE_NOISE.finding(sigma, noise["lo"], noise["hi"], noise["kind"],
                                             src[0].upper() + src[1:] + "."))
-    # model adequacy and the nonlinear suspension (_adequacy): its findings lead, as the linear
-    # findings hold only if the model's form does; their intervals count in the joint level
-    form = assess_model_form(prob, p_ext, corr_ext, res1, dynamic)
     findings = form["findings"] + findings
     joint_intervals(findings)
     if not findings:
@@ -74,10 +125,10 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
     gain = residual_gain(prob, res0, res1, bool(fit.causes), corrections, dynamic)
-    sim_err = enforced_terms(prob, model, res0)
+    sim_err = enforced_terms(prob.with_pipe(lin), model, res0)
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
-        sims = resimulate(pipe, model, p_ext, corr_ext, sigma, sim_err, gain)
+        sims = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain)
 
     report = {
         "schema": SCHEMA,

@@ -3,6 +3,7 @@ sandwich variance, low-band noise level) and the instrumental-variable Gauss-New
 
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import dataclass, field
 
@@ -58,6 +59,14 @@ class _Problem:
                 self.rows[nm] -= s
             self._ir_cache.clear()
             self.ir, self.noise_std = self.impulse_responses(self.model)
+
+    def with_pipe(self, pipe: ResidualPipeline) -> "_Problem":
+        """The same problem (rows, bands, noise responses) compared through ``pipe``: the same
+        pipeline carrying extra spring forces (``ResidualPipeline.with_extra``), which leave the
+        linear part, and so the noise responses, unchanged."""
+        new = copy.copy(self)
+        new.pipe = pipe
+        return new
 
     #: share of the force-noise power that sensor noise on the measured motion may add to a
     #: residual channel before the channel is low-passed

@@ -64,6 +64,11 @@ class ResidualPipeline:
         #: per residual channel: (cutoff Hz, sos) of a zero-phase low-pass applied to it, set by
         #: :func:`_problem.choose_bands` where the measured motion carries sensor noise
         self.band: dict = {}
+        #: extra chassis spring forces (front, rear) on the fine grid that the model carries besides
+        #: its linear springs and dampers (a nonlinear suspension cause found by the adequacy test,
+        #: ``with_extra``); ``None``: the linear model
+        self.extra = None
+        self._extra_cache: dict = {}
 
     # ---- step 1: the prescribed motion on the fine grid
     def _prescribe_pitch(self):
@@ -210,6 +215,27 @@ class ResidualPipeline:
         new = copy.copy(self)
         new.band = dict(band)
         return new
+
+    def with_extra(self, extra: tuple | None) -> "ResidualPipeline":
+        """The same pipeline whose model carries the extra spring forces ``extra = (d3, d4)`` (fine
+        grid, [N]; the original is unchanged). Its residuals are the linear model's plus the
+        channels' response to them (``_nonlinear.signatures``): the comparison the linear causes
+        are chosen on once a nonlinear cause is known, so that they do not stand in for it."""
+        new = copy.copy(self)
+        new.extra = None if extra is None else tuple(np.asarray(d, dtype=float) for d in extra)
+        new._extra_cache = {}
+        return new
+
+    def _extra_channels(self, p: dict) -> dict:
+        """The residual channels' change under ``self.extra`` for the model ``p`` (cached)."""
+        from ._nonlinear import signatures  # the signatures module builds on this one
+
+        key = tuple(sorted(p.items()))
+        if key not in self._extra_cache:
+            if len(self._extra_cache) > 64:
+                self._extra_cache.clear()
+            self._extra_cache[key] = signatures(self, p, self.extra)
+        return self._extra_cache[key]
 
     def corrected_forces(self, corr: Corrections, smooth: bool = False) -> dict[str, np.ndarray]:
         """True-force estimate on the fine grid (:class:`Corrections`), the delay applied as a
@@ -409,6 +435,9 @@ class ResidualPipeline:
         ch.update(self._spring_channels(p, f3, f4, linear_part_only))
         ch.update(self._tyre_channels(p, x, forces, forces_c, linear_part_only))
         self._band_filter(ch)
+        if self.extra is not None and not linear_part_only:
+            for nm, x in self._extra_channels(p).items():
+                ch[nm] = ch[nm] + x
         ch["static"] = self._static_channel(p, first, linear_part_only)
         U = self.U
         return Residuals(ch, f3[::U], f4[::U])
