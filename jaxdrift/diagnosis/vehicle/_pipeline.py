@@ -124,7 +124,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
 
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
-    gain = residual_gain(prob, res0, res1, bool(fit.causes), corrections, dynamic)
+    gain = residual_gain(prob, res0, res1, bool(fit.causes) or form["extra"] is not None, corrections, dynamic)
     sim_err = enforced_terms(prob.with_pipe(lin), model, res0)
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
