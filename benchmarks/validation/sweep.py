@@ -417,12 +417,19 @@ def nonlinear_summary(results: list[dict]) -> dict:
             continue
         e = nl[0]
         t = target(e)
-        said = any(f"{t[0]}[{t[1]}]" in nt for nt in r.get("could_not_show", []))
+        key = f"{t[0]}[{t[1]}]"
+        said = any(key in nt for nt in r.get("could_not_show", []))
+        # what the note says of this cause: 'cause[target] (... would show it)' (at no usual size)
+        # or 'cause[target] smaller than <limit> (...)', to set beside the true size
+        said_what = next((part.strip() for nt in r.get("could_not_show", [])
+                          for part in nt.split(":", 1)[-1].split(";") if key in part), None)
         axle = _axle(t)
         travel = f"s{1 if axle == 'front' else 2}"
         shows = e["cause"] == "tyre_lift_off" or travel in r["case"]["channels"]
         rows.append({"index": r["index"], "stratum": r["stratum"], "effect": label(t), "value": e["value"],
                      "right": bool(r["score"].get("right")), "could_not_show_said": said,
+                     "note": said_what.split(". ")[0] if said_what else None,
+                     "truth": {k: v for k, v in e.items() if k in ("ratio", "share", "stiffening", "value")},
                      "travel_measured": shows, "channels": r["case"]["channel_set"],
                      "first_three": [label(target(f)) + (f"({f.get('axle')})" if f["cause"] == "model_form" else "")
                                      for f in r["findings"][:3]]})
