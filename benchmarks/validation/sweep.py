@@ -406,7 +406,8 @@ def summarise(kind: str, results: list[dict], meta: dict) -> dict:
 def nonlinear_summary(results: list[dict]) -> dict:
     """The nonlinear design's measures: per run with a nonlinear effect, right (the cause, or
     ``model_form`` on its axle, first; pairs: both in the first two), else whether the report said
-    it could not show the effect; split by whether the run measured that axle's spring travel
+    it could not show the effect; also the nonlinear cause first alone (pairs too: the sensor
+    effect may come later); split by whether the run measured that axle's spring travel
     (s1/s2), the channel that shows a spring law. Effect-free runs: how many got a model-form
     finding (``FORM``), and how many got one of today's causes."""
     ok = [r for r in results if "score" in r]
@@ -428,6 +429,9 @@ def nonlinear_summary(results: list[dict]) -> dict:
         shows = e["cause"] == "tyre_lift_off" or travel in r["case"]["channels"]
         rows.append({"index": r["index"], "stratum": r["stratum"], "effect": label(t), "value": e["value"],
                      "right": bool(r["score"].get("right")), "could_not_show_said": said,
+                     "nonlinear_first": bool(r["findings"]) and (
+                         target(r["findings"][0]) == t
+                         or (r["findings"][0]["cause"] == "model_form" and r["findings"][0].get("axle") == axle)),
                      "note": said_what.split(". ")[0] if said_what else None,
                      "truth": {k: v for k, v in e.items() if k in ("ratio", "share", "stiffening", "value")},
                      "travel_measured": shows, "channels": r["case"]["channel_set"],
@@ -441,8 +445,13 @@ def nonlinear_summary(results: list[dict]) -> dict:
     def count(g):
         right = sum(x["right"] for x in g)
         said = sum((not x["right"]) and x["could_not_show_said"] for x in g)
+        # the issue's own measure: the nonlinear cause (or model_form on its axle) first, pairs too
+        first = sum(x["nonlinear_first"] for x in g)
+        first_said = sum((not x["nonlinear_first"]) and x["could_not_show_said"] for x in g)
         return {"n": len(g), "right": right, "right_pct": _pct(right, len(g)), "could_not_show_said": said,
-                "neither": len(g) - right - said}
+                "neither": len(g) - right - said, "nonlinear_first": first,
+                "nonlinear_first_pct": _pct(first, len(g)), "not_first_could_not_show_said": first_said,
+                "not_first_neither": len(g) - first - first_said}
 
     return {"all": count(rows), "travel_measured": count([x for x in rows if x["travel_measured"]]),
             "travel_not_measured": count([x for x in rows if not x["travel_measured"]]),
