@@ -592,6 +592,9 @@ def main(argv=None):
     ap.add_argument("--no-simulation", action="store_true",
                     help="vehicle: diagnose with with_simulation=False (no force-driven re-simulation: "
                          "no re-simulation check of the causes and no pitch gain; faster)")
+    ap.add_argument("--diagnosed-by", default=None, metavar="COMMIT",
+                    help="with --report-only on a cache diagnosed by another checkout: the commit to record "
+                         "as the diagnosing one (default: the last commit that changed jaxdrift/ here)")
     a = ap.parse_args(argv)
     gen = importlib.import_module("benchmarks.validation." + ("gen_vehicle" if a.kind == "vehicle" else "gen_attitude"))
     nonlinear = a.kind == "vehicle" and a.design == "nonlinear"
@@ -637,7 +640,7 @@ def main(argv=None):
            + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "")
            + (f" --design {design}" if design != "standard" else "") + " --jobs 1")
     summ = summarise(a.kind, results, {"seed": a.seed, "n_design": a.n, "command": cmd,
-                                       "sizing": sizing, "jaxdrift_commit": _commit()})
+                                       "sizing": sizing, "jaxdrift_commit": a.diagnosed_by or _commit()})
     if nonlinear:
         summ["nonlinear"] = nonlinear_summary(results)
     if len(results) < len(cases):
