@@ -41,6 +41,13 @@ def test_rear_damper_asymmetry_is_named_with_its_ratio(tmp_path):
     f = rep["findings"][0]
     assert (f["cause"], f["parameter"]) == ("damper_asymmetry", "d4"), rep["findings"]
     assert f["estimate"] == pytest.approx(1.5, rel=0.1)
+    assert f["interval"][0] <= 1.5 <= f["interval"][1]
+    # the term is fitted on the measured travel's rate: nothing else beside it (on the model's rate
+    # a 0.5 % error of d4 stood beside it, and 15 N of 'force noise' for the 2 N written), and the
+    # noise level within the 1.5x the validation sweeps ask
+    assert [g["cause"] for g in rep["findings"][1:]] == ["force_noise"], rep["findings"]
+    noise = rep["findings"][1]
+    assert noise["interval"][1] >= 2.0 and noise["estimate"] <= 3.0
     assert f["residual"]["rms_with"] < f["residual"]["rms_without"]
     assert rep["extended_model"]["nonlinear"]["damper_ratio4"] == pytest.approx(f["estimate"])
     # confirmed out of sample (alternate eighths of the record), and counted in the joint interval level

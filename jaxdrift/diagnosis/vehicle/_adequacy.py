@@ -15,7 +15,7 @@ when its t statistic passes ``ALPHA`` (two-sided) Bonferroni-divided by the numb
 terms, and it matters when the part it explains is at least ``PRACTICAL`` of the channel's
 dynamic spring-force scale.
 
-The states are the fitted model's, with the measured spring travel where there is one. What fails
+The states are the fitted model's, with the measured spring travel and rate where there is one. What fails
 is named, strongest first and each further term tested again with those named as nuisance columns:
 by the catalogue cause when the term is one (with its estimate, interval, evidence sentence and
 correction; a bump stop's travel fitted with its stiffness, ``_stop_fit``; confirmed out of sample

@@ -265,7 +265,7 @@ def catalogue() -> list[NonlinearCause]:
 # ----------------------------------------------------------------------------- states, signatures
 def model_states(pipe, p: dict, corr: dict) -> States:
     """Spring travel and rate of the fitted model driven by the corrected forces (fine grid); the
-    measured travel where there is one."""
+    measured travel and its rate where there is one."""
     forces_c, _ = pipe._corrected_coeffs(corr, False)
     f3, f4, x = pipe.simulate(p, None, forces_c=forces_c)
     a, b = p["a"], p["b"]
@@ -279,10 +279,12 @@ def model_states(pipe, p: dict, corr: dict) -> States:
         s, ds = (x[:, 0], x[:, 1]), (x[:, 2], x[:, 3])
     g, m3 = p["g"], p["m3"]
     s0 = (a * m3 * g / (a + b) / p["k3"], b * m3 * g / (a + b) / p["k4"])
-    # where the spring travel is measured the terms take it: a spring law acts on the real travel,
-    # which the linear model overshoots wherever the real law is stiffer (a stop: 61 mm of model
-    # travel where the stop held the spring at 52 mm)
+    # where the spring travel is measured the terms take it and its rate: a spring law acts on the
+    # real travel, which the linear model overshoots wherever the real law is stiffer (a stop: 61 mm
+    # of model travel where the stop begins at 52 mm), and a damper law on the real rate (the
+    # model's rate left small damping errors of the same damper beside an asymmetry)
     s = tuple(pipe.s_f[f"s{i + 1}"] if pipe.has_s[i] else s[i] for i in (0, 1))
+    ds = tuple(pipe.ds[f"s{i + 1}"] if pipe.has_s[i] else ds[i] for i in (0, 1))
     n = len(s[0])
     return States(tuple(np.asarray(s[i][:n]) - s0[i] for i in (0, 1)), tuple(np.asarray(ds[i][:n]) for i in (0, 1)),
                   s0, p)
