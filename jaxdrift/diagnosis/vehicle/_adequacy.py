@@ -28,6 +28,7 @@ run could not show it and name the channel that would. Tyre lift-off is read fro
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -131,14 +132,10 @@ def _tests(prob, p_ext, st, res1, terms):
     the residual, at the kept rows."""
     pipe = prob.pipe
     fs = 1.0 / pipe.h
-    zero = np.zeros_like(st.u[0])
-    nuis_delta = [(st.p["k3"] * st.u[0], zero), (st.p["d3"] * st.v[0], zero),
-                  (zero, st.p["k4"] * st.u[1]), (zero, st.p["d4"] * st.v[1])]
+    nuis_delta = [_on_axle(0, st.p["k3"] * st.u[0]), _on_axle(0, st.p["d3"] * st.v[0]),
+                  _on_axle(1, st.p["k4"] * st.u[1]), _on_axle(1, st.p["d4"] * st.v[1])]
     sig_n = [signatures(pipe, p_ext, d) for d in nuis_delta]
-    sig_t = []
-    for c in terms:
-        f = c.force(st)
-        sig_t.append(signatures(pipe, p_ext, (f, zero) if c.axle == 0 else (zero, f)))
+    sig_t = [signatures(pipe, p_ext, _on_axle(c.axle, c.force(st))) for c in terms]
     out = {}
     for nm in prob.names:
         if nm == "static":
@@ -155,6 +152,28 @@ def _tests(prob, p_ext, st, res1, terms):
 def _rms(x):
     x = np.asarray(x, dtype=float)
     return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def _on_axle(axle: int, f: np.ndarray) -> tuple:
+    """The extra spring forces (front, rear) of a force ``f`` on ``axle``."""
+    zero = np.zeros_like(f)
+    return (f, zero) if axle == 0 else (zero, f)
+
+
+def _column(prob, p: dict, axle: int, f: np.ndarray, nm: str) -> np.ndarray:
+    """The column of the force ``f`` on ``axle`` in channel ``nm`` at the kept rows: minus its
+    signature (the residual is ``theta`` times it for a true ``theta``)."""
+    return -_kept(prob, signatures(prob.pipe, p, _on_axle(axle, f))[nm], nm)
+
+
+def _explained(t: float, th: float, dof: float, col: np.ndarray, scale: float, m: int) -> float | None:
+    """The RMS of the part a term explains where it meets both conditions of a finding (its t
+    statistic passes ``ALPHA`` Bonferroni-divided by ``m``, and that part is at least ``PRACTICAL``
+    of the channel's ``scale``); ``None`` where it does not."""
+    if not np.isfinite(t) or 2 * scipy.stats.t.sf(abs(t), dof) > ALPHA / m:
+        return None
+    size = _rms(th * col)
+    return size if size >= PRACTICAL * scale else None
 
 
 def assess_model_form(prob, p_ext: dict, corr_ext: dict, res1, dynamic: bool) -> dict:
@@ -192,15 +211,9 @@ def _significant(terms, tests, scales, m, skip=()):
     hits = []
     for nm, d in tests.items():
         for j, (t, th, se, dof, _, _) in enumerate(d["tests"]):
-            if j in skip or not np.isfinite(t):
-                continue
-            pval = 2 * scipy.stats.t.sf(abs(t), dof)
-            if pval > ALPHA / m:
-                continue
-            size = _rms(th * d["S"][:, j])
-            if size < PRACTICAL * scales[nm]:
-                continue
-            hits.append((abs(t), nm, j, th, se, size))
+            size = None if j in skip else _explained(t, th, dof, d["S"][:, j], scales[nm], m)
+            if size is not None:
+                hits.append((abs(t), nm, j, th, se, size))
     return sorted(hits, key=lambda h: -h[0])
 
 
@@ -221,8 +234,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
             # also shows in the moment, where another axle's term can take part of it
             N2 = np.column_stack([d["N"], d["S"][:, taken]])
             t, th, se, dof, *_ = _channel_test(d["y"], N2, d["S"][:, [j]], fs, d["fc"])[0]
-            if (not np.isfinite(t) or 2 * scipy.stats.t.sf(abs(t), dof) > ALPHA / m
-                    or _rms(th * d["S"][:, j]) < PRACTICAL * scales[nm]):
+            if _explained(t, th, dof, d["S"][:, j], scales[nm], m) is None:
                 continue
             z = abs(t)
         used_axles.add(c.axle)
@@ -246,9 +258,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
                   f"RMS in that band {'falls' if after < before else 'rises'} from {before:.4g} to {after:.4g} {_UNITS[nm]}")
             # in the extended model (``extended_model.nonlinear``); its check is the adequacy test
             f_c = c.force(st_c)
-            zero = np.zeros_like(f_c)
-            sig = signatures(prob.pipe, st.p, (f_c, zero) if c.axle == 0 else (zero, f_c))
-            held = _held_out_check(d, -_kept(prob, sig[nm], nm), prob.pipe)
+            held = _held_out_check(d, _column(prob, st.p, c.axle, f_c, nm), prob.pipe)
             ok = held[1] < held[0]
             ev += (f"; fitted on alternate eighths of the record and checked on the others, the correction "
                    f"{'lowers' if ok else 'does not lower'} that residual out of sample ({held[0]:.4g} to "
@@ -262,7 +272,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
             if ok:
                 correction.update(c.correction(th, st))
                 extra = [np.zeros_like(st.u[0]), np.zeros_like(st.u[0])] if extra is None else extra
-                extra[c.axle] = extra[c.axle] + th * c.force(st_c)
+                extra[c.axle] = extra[c.axle] + th * f_c
         else:
             ev = (f"The {_WORDS[nm]} left after the fit depends on {phrase} (compared below {band[1]:.3g} Hz, "
                   f"z = {z:.1f}): a part of RMS {size:.4g} {_UNITS[nm]} ({100 * size / max(_rms(y), 1e-300):.3g} % of "
@@ -299,19 +309,16 @@ def _refine(prob, st, c, d, th, se):
         return th, se, st
     fs = 1.0 / pipe.h
     n = len(st.u[0])
-    zero = np.zeros(n)
     u, v = [np.array(x) for x in st.u], [np.array(x) for x in st.v]
     cur = st
     for _ in range(REFINE_ITERS):
         f = th * c.force(cur)
-        du, dv = travel_response(pipe, p, (f, zero) if c.axle == 0 else (zero, f))
+        du, dv = travel_response(pipe, p, _on_axle(c.axle, f))
         i = c.axle
         u[i] = (1 - REFINE_RELAX) * u[i] + REFINE_RELAX * (st.u[i] + du[i][:n])
         v[i] = (1 - REFINE_RELAX) * v[i] + REFINE_RELAX * (st.v[i] + dv[i][:n])
         cur = States(tuple(u), tuple(v), st.s0, p)
-        f1 = c.force(cur)
-        sig = signatures(pipe, p, (f1, zero) if c.axle == 0 else (zero, f1))
-        S = -_kept(prob, sig[d["name"]], d["name"])[:, None]
+        S = _column(prob, p, c.axle, c.force(cur), d["name"])[:, None]
         t, th_new, se, *_ = _channel_test(d["y"], d["N"], S, fs, d["fc"])[0]
         if abs(th_new - th) <= 1e-4 * abs(th):
             th = th_new
@@ -327,11 +334,7 @@ STOP_GRID, STOP_STEPS = 40, 14
 
 def _stop_t(prob, st, d, axle: int, q: float) -> tuple[float, float, float]:
     """(t, theta, se) of a stop at the travel quantile ``q`` in the channel of ``d``."""
-    b = BumpStop(axle, q)
-    f = b.force(st)
-    zero = np.zeros_like(f)
-    sig = signatures(prob.pipe, st.p, (f, zero) if axle == 0 else (zero, f))
-    S = -_kept(prob, sig[d["name"]], d["name"])[:, None]
+    S = _column(prob, st.p, axle, BumpStop(axle, q).force(st), d["name"])[:, None]
     t, th, se, *_ = _channel_test(d["y"], d["N"], S, 1.0 / prob.pipe.h, d["fc"])[0]
     return float(t), float(th), float(se)
 
@@ -346,7 +349,9 @@ def _stop_fit(prob, st, c, d):
     is far too narrow. Returns ``(cause, theta, se, states, (lo, hi))``."""
     axle = c.axle
     qs = np.linspace(STOP_Q[0], STOP_Q[1], STOP_GRID)
-    t2 = lambda q: _stop_t(prob, st, d, axle, q)[0] ** 2  # noqa: E731
+    # each travel's test once: the search, the profile's ends and the refits meet the same ones
+    at = functools.lru_cache(maxsize=None)(lambda q: _stop_t(prob, st, d, axle, float(q)))
+    t2 = lambda q: at(q)[0] ** 2  # noqa: E731
     vals = [t2(q) for q in qs]
     i = int(np.argmax(vals))
     a, b = qs[max(i - 1, 0)], qs[min(i + 1, len(qs) - 1)]
@@ -378,7 +383,7 @@ def _stop_fit(prob, st, c, d):
     out, ivs = None, []
     for q in [q_best] + ends:
         cq = BumpStop(axle, float(q))
-        t, th, se = _stop_t(prob, st, d, axle, float(q))
+        t, th, se = at(q)
         th, se, st_c = _refine(prob, st, cq, d, th, se)
         ivs += [th - 1.96 * se, th + 1.96 * se]
         if out is None:
