@@ -18,7 +18,7 @@ from ._residuals import ResidualPipeline
 from ._select import _select
 
 
-def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem, object]:
+def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem, object, dict | None]:
     """The linear causes, chosen once the model's form is right.
 
     A nonlinear suspension force the model lacks leaves a residual that linear causes partly take
@@ -28,11 +28,11 @@ def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem,
     the linear causes are then chosen again on a comparison whose model carries the confirmed
     nonlinear cause's force (``ResidualPipeline.with_extra``). That choice is kept when the
     adequacy test of its fit names the same nonlinear causes again; otherwise the first one
-    stands. Returns the problem (carrying the force where the second choice is kept) and the
-    selection."""
+    stands. Returns the problem (carrying the force where the second choice is kept), the
+    selection and the adequacy test of its fit (``None`` for a run with no dynamic channel)."""
     sel = _select(prob, log=log)
     if len(sel.fit.r) <= 2:
-        return prob, sel
+        return prob, sel, None
     model, pipe = prob.model, prob.pipe
 
     def form_of(causes, theta):
@@ -43,11 +43,11 @@ def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem,
         return {(f["cause"], f["parameter"]) for f in form["findings"]
                 if "parameter" in f and (f.get("confirmed") or not confirmed)}
 
-    form = form_of(sel.fit.causes, sel.fit.theta)
+    form_sel = form = form_of(sel.fit.causes, sel.fit.theta)
     if form["extra"] is None and sel.fit.causes:
         form = form_of([], [])
     if form["extra"] is None:
-        return prob, sel
+        return prob, sel, form_sel
     prob_x = prob.with_pipe(pipe.with_extra(form["extra"]))
     sel_x = _select(prob_x, log=log)
     form_x = form_of(sel_x.fit.causes, sel_x.fit.theta)
@@ -61,8 +61,8 @@ def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem,
                    f"first choice {[c.label for c in sel.fit.causes]}: "
                    + ("kept" if kept else "the nonlinear causes are not named again, the first choice stands"))
     if not kept:
-        return prob, sel
-    return prob.with_pipe(pipe.with_extra(extra_x)), sel_x
+        return prob, sel, form_sel
+    return prob.with_pipe(pipe.with_extra(extra_x)), sel_x, form_x
 
 
 def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=None,
@@ -77,7 +77,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
     pipe = prob.pipe  # with the channels it compares band-limited
-    prob, sel0 = select_with_form(prob, log)  # prob carries a nonlinear cause's force where one is found
+    # prob carries a nonlinear cause's force where one is found; form0: the adequacy test of sel0's fit
+    prob, sel0, form0 = select_with_form(prob, log)
     sel, held_out = confirm_corrections(prob, sel0, log)
     resim_out = []
     if with_simulation:
@@ -89,8 +90,12 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     # findings lead, as the linear findings hold only if the model's form does; their intervals
     # count in the joint level
     lin = pipe.with_extra(None)
+    prob_lin = prob.with_pipe(lin)
     p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
-    form = assess_model_form(prob.with_pipe(lin), p_ext, corr_ext, lin.residuals(p_ext, corr_ext), dynamic)
+    if form0 is not None and fit is sel0.fit:  # the checks kept every cause: tested already
+        form = form0
+    else:
+        form = assess_model_form(prob_lin, p_ext, corr_ext, lin.residuals(p_ext, corr_ext), dynamic)
     # residuals before (the model) / after (the extended model, its nonlinear causes included)
     res0 = lin.residuals(model, NO_CORRECTION)
     prob = prob.with_pipe(lin.with_extra(form["extra"]))
@@ -125,7 +130,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
     gain = residual_gain(prob, res0, res1, bool(fit.causes) or form["extra"] is not None, corrections, dynamic)
-    sim_err = enforced_terms(prob.with_pipe(lin), model, res0)
+    sim_err = enforced_terms(prob_lin, model, res0)
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
         sims = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain)
