@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 
-__all__ = ["white_factor", "robust_diff_sigma", "diff_variance", "first_plateau"]
+__all__ = ["white_factor", "mad_sigma", "robust_diff_sigma", "diff_variance", "first_plateau"]
 
 
 def white_factor(k: int) -> int:
@@ -20,12 +20,16 @@ def white_factor(k: int) -> int:
     return math.comb(2 * k, k)
 
 
+def mad_sigma(x: np.ndarray) -> float:
+    """The standard deviation of normal data from their median absolute deviation (1.4826 x MAD:
+    robust to a few outliers)."""
+    return float(np.median(np.abs(x - np.median(x))) * 1.4826)
+
+
 def robust_diff_sigma(x: np.ndarray, k: int) -> float:
     """The white-noise standard deviation of a 1-D series from the median absolute deviation of
     its k-th difference (robust to a few glitches)."""
-    d = np.diff(x, k)
-    mad = np.median(np.abs(d - np.median(d))) * 1.4826
-    return float(mad / math.sqrt(white_factor(k)))
+    return mad_sigma(np.diff(x, k)) / math.sqrt(white_factor(k))
 
 
 def diff_variance(x: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray, int]:

@@ -37,6 +37,7 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_matrix_np,
 )
+from .._diffnoise import mad_sigma
 
 __all__ = ["interval_rates", "consistency", "still_rows", "AXES",
            "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "WINDOW_S"]
@@ -152,7 +153,7 @@ def _flag(gamma, rho, dti, t_start, t_end):
         for c in range(3):
             loc = median_filter(d[:, c], size=7, mode="nearest")
             res = d[:, c] - loc
-            sig = 1.4826 * float(np.median(np.abs(res - np.median(res))))
+            sig = mad_sigma(res)
             jump = (np.abs(res) > max(REF_JUMP, 10.0 * sig)) & (np.abs(res) * dti > 5e-3)
             if jump.any():
                 cells = jump | np.r_[jump[1:], False] | np.r_[False, jump[:-1]]

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from .._diffnoise import mad_sigma
 from ._discretise import _poly_coeffs
 
 AXLES = ("front", "rear")
@@ -377,7 +378,7 @@ class TyreLiftOff:
         # they carry real content there (a rough road at a low rate: 24 N read where 0.8 N was
         # written), and so wide a window takes in the steep flanks of every lift-off
         near = f[f <= m + self.NEAR_SHARE * fs0]
-        sigma = min(sigma, 1.4826 * float(np.median(np.abs(near - np.median(near)))))
+        sigma = min(sigma, mad_sigma(near))
         w = 3.0 * sigma + 0.005 * fs0
         if abs(m) > self.FLOOR_SHARE * fs0 or float(f.min()) < m - w:
             return None
