@@ -97,7 +97,7 @@ def run_campaign(args) -> int:
 
     jax.config.update("jax_enable_x64", True)
     pid = _jax_distributed(args, UsageError)
-    def run_campaign():
+    def run():
         from ..campaign import campaign
 
         return campaign(args.runs, model=args.model, out=args.out, manifest=args.manifest, workers=args.workers,
@@ -105,7 +105,7 @@ def run_campaign(args) -> int:
                         basquin_k=args.basquin_k, param_draws=args.param_draws, reading=c.run_options(args),
                         figures=not args.no_figures, progress=c.VERBOSITY >= 1, write=pid == 0)
 
-    doc, rc = c.guarded("campaign", run_campaign)
+    doc, rc = c.guarded("campaign", run)
     if rc:
         return rc
     runs = doc["runs"]
