@@ -15,15 +15,16 @@ when its t statistic passes ``ALPHA`` (two-sided) Bonferroni-divided by the numb
 terms, and it matters when the part it explains is at least ``PRACTICAL`` of the channel's
 dynamic spring-force scale.
 
-The states are the fitted model's, with the measured spring travel and rate where there is one. What fails
-is named, strongest first and each further term tested again with those named as nuisance columns:
-by the catalogue cause when the term is one (with its estimate, interval, evidence sentence and
-correction; a bump stop's travel fitted with its stiffness, ``_stop_fit``; confirmed out of sample
-on alternate blocks of the record, ``_held_out_check``), else a ``model_form`` finding with the
-channel, band, state and size. The confirmed causes' forces (``extra``) let the linear causes be
-chosen again on a model that has them (``_pipeline.select_with_form``). Where a catalogue cause of the largest size engineers meet would not pass, the notes say the
-run could not show it and name the channel that would. Tyre lift-off is read from the forces
-(``_nonlinear.TyreLiftOff``).
+The states are the fitted model's, with the measured spring travel and rate where there is one.
+What fails is named, strongest first and each further term tested again with those named as
+nuisance columns: by the catalogue cause when the term is one (with its estimate, interval,
+evidence sentence and correction; a bump stop's travel fitted with its stiffness, ``_stop_fit``;
+confirmed out of sample on alternate blocks of the record, ``_held_out_check``), else a
+``model_form`` finding with the channel, band, state and size. The confirmed causes' forces
+(``extra``) let the linear causes be chosen again on a model that has them
+(``_pipeline.select_with_form``). Where a catalogue cause of the largest size engineers meet would
+not pass, the notes say the run could not show it and name the channel that would. Tyre lift-off is
+read from the forces (``_nonlinear.TyreLiftOff``).
 """
 
 from __future__ import annotations
