@@ -332,3 +332,35 @@ def test_diagnose_cache_outlives_a_change_to_the_joint_stage(tmp_path):
     imported = {n.module if n.module else a.name for n in ast.walk(ast.parse(tasks.read_text()))
                 if isinstance(n, ast.ImportFrom) and n.level == 1 for a in n.names}
     assert not imported & {f[:-3] for f in _manifest.AFTER_DIAGNOSIS}
+
+
+# ------------------------------------------------------------ the command line, both forms
+
+
+def test_campaign_command_line_runs_and_manifest_forms(tmp_path):
+    """The README's two campaign lines, end to end on a LocalCluster: ``jaxdrift campaign RUN...
+    --model M --out DIR --workers N`` (the reading options of the command line, --strict-time
+    among them, reach every run) and ``--manifest``; both diagnose the same runs alike."""
+    pytest.importorskip("distributed")
+    from jaxdrift.cli import main
+
+    data = tmp_path / "data"
+    _design(data, 2, 6107, n_shared=1, durations=(3.0, 3.0), rates=(200,), params=("m3",),
+            motion_noise_share=0.0)
+    runs = sorted(str(p) for p in data.glob("run_*.csv"))
+    assert len(runs) == 2
+    rc = main(["-q", "campaign", *runs, "--model", str(data / "model.json"), "--out", str(tmp_path / "a"),
+               "--workers", "1", "--strict-time", "--no-figures"])
+    assert rc == 0
+    a = json.loads((tmp_path / "a" / "campaign.json").read_text())
+    assert [r["status"] for r in a["runs"]] == ["ok", "ok"]
+    rc = main(["-q", "campaign", "--manifest", str(data / "campaign.toml"), "--out", str(tmp_path / "b"),
+               "--workers", "1", "--no-figures"])
+    assert rc == 0
+    b = json.loads((tmp_path / "b" / "campaign.json").read_text())
+    assert [r["status"] for r in b["runs"]] == ["ok", "ok"]
+    by_run = lambda doc: {Path(r["run"]).name: r["findings"] for r in doc["runs"]}  # noqa: E731
+    assert by_run(a) == by_run(b)
+    # a reading option beside --manifest is refused with the place it belongs
+    assert main(["-q", "campaign", "--manifest", str(data / "campaign.toml"), "--out", str(tmp_path / "c"),
+                 "--strict-time"]) == 2

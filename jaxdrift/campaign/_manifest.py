@@ -14,7 +14,7 @@ from ..io._provenance import jaxdrift_version
 
 __all__ = ["RunSpec", "read_manifest", "run_specs", "cache_key"]
 
-_RUN_KEYS = {"file", "map", "units", "fs", "force", "logger", "repetitions"}
+_RUN_KEYS = {"file", "map", "units", "fs", "force", "strict_time", "logger", "repetitions"}
 
 
 @dataclasses.dataclass(frozen=True)
@@ -28,6 +28,7 @@ class RunSpec:
     units: str | None = None
     fs: float | None = None
     force: bool = False
+    strict_time: bool = False
     logger: str | None = None
     repetitions: float = 1.0
 
@@ -40,7 +41,8 @@ class RunSpec:
         return self.logger if self.logger is not None else f"run:{self.path}"
 
     def reading(self) -> dict:
-        return {"map": self.map, "units": self.units, "fs": self.fs, "force": self.force}
+        return {"map": self.map, "units": self.units, "fs": self.fs, "force": self.force,
+                "strict_time": self.strict_time}
 
 
 def _check_run(i: int, where: str, d: dict, base: str) -> RunSpec:
@@ -55,13 +57,16 @@ def _check_run(i: int, where: str, d: dict, base: str) -> RunSpec:
     for k in ("map", "units", "logger"):
         if k in d and not isinstance(d[k], str):
             raise UsageError(f"{where}, run {i + 1} ({d['file']}): {k} must be a string, got {d[k]!r}")
+    for k in ("force", "strict_time"):
+        if k in d and not isinstance(d[k], bool):
+            raise UsageError(f"{where}, run {i + 1} ({d['file']}): {k} must be true or false, got {d[k]!r}")
     fs = d.get("fs")
     if fs is not None and (isinstance(fs, bool) or not isinstance(fs, (int, float)) or not fs > 0):
         raise UsageError(f"{where}, run {i + 1} ({d['file']}): fs must be a number > 0, got {fs!r}")
     path = d["file"] if os.path.isabs(d["file"]) else os.path.join(base, d["file"])
     return RunSpec(path=os.path.normpath(path), map=d.get("map"), units=d.get("units"),
                    fs=None if fs is None else float(fs), force=bool(d.get("force", False)),
-                   logger=d.get("logger"), repetitions=float(rep))
+                   strict_time=bool(d.get("strict_time", False)), logger=d.get("logger"), repetitions=float(rep))
 
 
 def read_manifest(path) -> tuple[list[RunSpec], str | None]:
@@ -72,7 +77,7 @@ def read_manifest(path) -> tuple[list[RunSpec], str | None]:
         file = "day1/run_001.csv"
         logger = "DAQ-7"              # optional: runs with one logger share their sensor effects
         repetitions = 120             # optional (default 1): the test schedule's count
-        map = "f1=Fz_FL,f2=Fz_RL"     # optional: as --map, --units, --fs, --force
+        map = "f1=Fz_FL,f2=Fz_RL"     # optional: as --map, --units, --fs, --force, --strict-time
     """
     import tomllib
 
@@ -109,10 +114,12 @@ def _check_unique(specs, where: str) -> None:
         seen[key] = s
 
 
-def run_specs(paths, *, map=None, units=None, fs=None, force=False, repetitions=1.0) -> list[RunSpec]:
-    """Specs of runs given on the command line (one set of reading options for all)."""
+def run_specs(paths, *, map=None, units=None, fs=None, force=False, strict_time=False,
+              repetitions=1.0) -> list[RunSpec]:
+    """Specs of runs given on the command line (one set of reading options for all: the keys of
+    ``jaxdrift.cli._common.run_options``, which are those of :meth:`RunSpec.reading`)."""
     specs = [RunSpec(path=os.path.normpath(str(p)), map=map, units=units, fs=fs, force=force,
-                     repetitions=float(repetitions)) for p in paths]
+                     strict_time=bool(strict_time), repetitions=float(repetitions)) for p in paths]
     _check_unique(specs, "RUN")
     return specs
 

@@ -91,8 +91,9 @@ def run_campaign(args) -> int:
         raise UsageError("--workers starts a LocalCluster; --scheduler uses an existing one: give one of them")
     if args.workers is not None and args.workers < 1:
         raise UsageError(f"--workers must be >= 1, got {args.workers}")
-    if args.manifest and any(getattr(args, k) for k in ("map", "units", "fs", "force")):
-        raise UsageError("with --manifest the reading options (--map, --units, --fs, --force) go into its [[run]] tables")
+    if args.manifest and any(getattr(args, k) for k in ("map", "units", "fs", "force", "strict_time")):
+        raise UsageError("with --manifest the reading options (--map, --units, --fs, --force, --strict-time) "
+                         "go into its [[run]] tables")
     import jax
 
     jax.config.update("jax_enable_x64", True)
