@@ -13,6 +13,8 @@ import os
 import sys
 from pathlib import Path
 
+import json
+
 import numpy as np
 import pytest
 
@@ -345,6 +347,12 @@ def test_ros_bag_imu(tmp_path, monkeypatch, ros, with_q):
         assert run["q_ref"] is None and run["q_ref_t"] is None
     rows = cli.main(["topics", str(path)])
     assert rows == 0
+    if ros == 2 and with_q:
+        # a ROS 2 bag is a folder: the report's provenance hashes every file in it
+        assert cli.main(["-q", "diagnose", str(path), "--json", str(tmp_path / "r.json"), "--force"]) == 0  # wz constant
+        (inp,) = json.loads((tmp_path / "r.json").read_text())["provenance"]["inputs"]
+        assert inp["bytes"] == sum(f.stat().st_size for f in path.rglob("*") if f.is_file())
+        assert len(inp["sha256"]) == 64
     # the numpy path over the raw messages is taken, and reads what rosbags deserialises
     from jaxdrift.io import _bag_fast, _logs
 

@@ -31,7 +31,7 @@ import threading
 from ..errors import InputError
 
 __all__ = ["COMMIT_LOCK", "PENDING", "INTERRUPT", "MANIFEST", "in_commit", "park", "check_outputs", "atomic_path", "atomic_dir",
-           "write_json", "write_report", "check_report_finite", "nonfinite_in_report", "write_text", "write_table", "sha256_file", "finite_json", "remove_pending"]
+           "write_json", "write_report", "check_report_finite", "nonfinite_in_report", "write_text", "write_table", "sha256_file", "input_bytes", "finite_json", "remove_pending"]
 
 #: held while temporary files are renamed into place
 COMMIT_LOCK = threading.RLock()
@@ -183,12 +183,35 @@ def atomic_path(path, option: str = "output"):
             PENDING.discard(tmp)
 
 
+def _files_under(path) -> list[str]:
+    """The files of an input: the path itself, or every file under a folder (a ROS 2 bag is a
+    folder of metadata.yaml and .db3/.mcap files), in a fixed order."""
+    if not os.path.isdir(path):
+        return [path]
+    out = []
+    for dirpath, dirs, files in os.walk(path):
+        dirs.sort()
+        out += [os.path.join(dirpath, f) for f in sorted(files)]
+    return out
+
+
 def sha256_file(path, block: int = 1 << 20) -> str:
+    """SHA-256 of a file; of a folder, over its files' relative names and contents in order."""
+    path = os.fspath(path)
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while chunk := fh.read(block):
-            h.update(chunk)
+    folder = os.path.isdir(path)
+    for f in _files_under(path):
+        if folder:
+            h.update(os.path.relpath(f, path).replace(os.sep, "/").encode() + b"\0")
+        with open(f, "rb") as fh:
+            while chunk := fh.read(block):
+                h.update(chunk)
     return h.hexdigest()
+
+
+def input_bytes(path) -> int:
+    """Size of a file, or of all files under a folder."""
+    return sum(os.path.getsize(f) for f in _files_under(os.fspath(path)))
 
 
 @contextlib.contextmanager

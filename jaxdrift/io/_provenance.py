@@ -7,7 +7,7 @@ import os
 import platform
 import sys
 
-from ._outputs import sha256_file
+from ._outputs import input_bytes, sha256_file
 
 __all__ = ["provenance", "jaxdrift_version"]
 
@@ -32,7 +32,7 @@ def provenance(command: str, inputs=(), *, model=None, options=None) -> dict:
         if p is None:
             continue
         files.append({"file": os.path.basename(str(p)), "path": os.path.abspath(str(p)),
-                      "bytes": os.path.getsize(p), "sha256": sha256_file(p)})
+                      "bytes": input_bytes(p), "sha256": sha256_file(p)})
     return {
         "jaxdrift_version": jaxdrift_version(),
         "command": command,
