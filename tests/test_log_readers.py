@@ -587,3 +587,31 @@ def test_fs_on_a_jittered_csv_sets_the_grid_and_is_checked(tmp_path):
     assert run["time_base"]["fs"] == 200.0 and run["dt"] == pytest.approx(0.005, rel=1e-12)
     with pytest.raises(UsageError, match=r"median\), but --fs 250 gives 0.004 s"):
         read_attitude_run(str(path), fs=250.0)
+
+
+def test_legitimate_logs_need_no_force(tmp_path):
+    """A log format fixes its time unit: a gyro logged at 9.6 Hz is a coarse log, not t in
+    milliseconds; a hand-spun IMU at 30 rad/s is within a MEMS gyro's range. The same coarse
+    step in a CSV's own t column is still asked about, and deg/s read as rad/s still refused."""
+    pytest.importorskip("rosbags")
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    t = 1000.0 + np.arange(200) / 9.6
+    w = _w(t) * [100.0, 1.0, 1.0]  # wx up to 30 rad/s
+    w[:, 2] += 0.05 * np.sin(t)  # (a constant wz would be a dead channel)
+    store = get_typestore(Stores.ROS2_HUMBLE)
+    path = tmp_path / "spin"
+    with Writer(path, version=9) as wr:
+        c = wr.add_connection("/imu", "sensor_msgs/msg/Imu", typestore=store)
+        for ti, m in zip(t, _imu_msgs(store, t, w, _quat(t))):
+            wr.write(c, int(ti * 1e9), store.serialize_cdr(m, "sensor_msgs/msg/Imu"))
+    run = read_attitude_run(str(path), checks=True)
+    assert run["info"]["rate_hz"] == pytest.approx(9.6, rel=1e-6) and not run["info"]["forced"]
+    _write_csv(tmp_path / "coarse.csv", t - 1000.0, w / [100.0, 1.0, 1.0])
+    with pytest.raises(UsageError, match="milliseconds"):
+        read_attitude_run(str(tmp_path / "coarse.csv"), checks=True)
+    t2 = 3.0 + np.arange(400) * 0.005
+    _write_csv(tmp_path / "degs.csv", t2, np.degrees(_w(t2) * [5.0, 1.0, 1.0] + np.outer(np.sin(t2), [0, 0, 0.05])))
+    with pytest.raises(UsageError, match="deg/s"):
+        read_attitude_run(str(tmp_path / "degs.csv"), checks=True)

@@ -16,7 +16,9 @@ STATIC_RATIO_TOL = 1.5
 #: a step longer than this is no vehicle-dynamics run (most likely t in milliseconds)
 MAX_STEP_S = 0.05
 MAX_PITCH_RAD = 0.5
-MAX_RATE_RAD_S = 20.0
+#: above the full scale of any MEMS gyro (4000 deg/s = 70 rad/s; hand-spun IMUs read 35 rad/s and
+#: more), while rates in deg/s read as rad/s exceed it from 1.4 rad/s of true motion on
+MAX_RATE_RAD_S = 80.0
 MAX_SPRING_M = 0.5
 MAX_EXCURSION_M = 20.0
 MAX_ACCEL = 2000.0
@@ -67,15 +69,17 @@ def _spike(x) -> tuple[int, float] | None:
 
 def plausibility_problems(kind: str, t: np.ndarray, channels: dict, *, where, name_of,
                           model: dict | None = None, model_label: str = "the model",
-                          quantity_of=lambda c: None) -> list[str]:
+                          quantity_of=lambda c: None, time_unit_known: bool = False) -> list[str]:
     """Messages for everything implausible in a run (empty when it looks fine).
 
     ``where(row, col)`` gives ``file, line L, column c``; ``name_of(col)`` the file's name of a
-    contract column (after ``--map``)."""
+    contract column (after ``--map``). ``time_unit_known``: the format fixes the time unit (a
+    ULog's microseconds, a bag's nanoseconds, an MDF4 master channel, ``--units t=...``), so a
+    coarse step is a coarse log, never a unit mistake."""
     out = []
     bad = set()
     dt = float((t[-1] - t[0]) / (len(t) - 1))
-    if dt > MAX_STEP_S:
+    if dt > MAX_STEP_S and not time_unit_known:
         out.append(f"column {name_of('t')}: sample step {dt:.6g} s ({1 / dt:.3g} Hz) is far too "
                    f"coarse for vehicle dynamics: is t in milliseconds? (--units t=ms, or --fs)")
     for c, x in channels.items():

@@ -319,7 +319,8 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
             where=where if rows is None else (lambda i, c=None: where(int(rows[i]), c)),
             name_of=lambda c: file_of.get(c, c),
             model=dict(DEFAULT_MODEL if model is None else model), model_label=model_label,
-            quantity_of=quantity_of)
+            quantity_of=quantity_of,
+            time_unit_known=own_times or synth_t or "t" in factors)
     if problems and not force:
         more = "\n  ".join(problems)
         raise InputError(f"{more}\n  (nothing computed; if the file is right, --force goes on anyway)")
