@@ -83,25 +83,36 @@ def test_jittered_csv_refused_strict_and_resampled_otherwise(tmp_path):
 
 
 def test_gap_is_never_interpolated_across(tmp_path):
+    """9 and 3 missing samples are gaps (segments, NaN rows); one or two dropped samples are
+    bridged by the interpolation and reported (a logger that drops a sample now and then is not
+    cut into a segment per drop)."""
     rng = np.random.default_rng(4022)
     dt = 0.004
-    t = _jittered_t(1500, dt, rng, gaps=[(600, 9), (1100, 1)])
+    t = _jittered_t(1500, dt, rng, gaps=[(300, 2), (600, 9), (900, 1), (1300, 3)])
     w = _w(t)
     path = tmp_path / "gap.csv"
     _write_csv(path, t, w)
     run = read_attitude_run(str(path))
     tb = run["time_base"]
     assert [(g["t_start"], g["t_end"]) for g in tb["gaps"]] == [(pytest.approx(t[600]), pytest.approx(t[601])),
-                                                                 (pytest.approx(t[1100]), pytest.approx(t[1101]))]
+                                                                 (pytest.approx(t[1300]), pytest.approx(t[1301]))]
     assert all(g["duration_s"] > GAP_FACTOR * dt for g in tb["gaps"])
+    br = tb["bridged"]["wx"]
+    assert br["steps"] == 2 and br["missing_samples"] == 3
+    assert [b["t_start"] for b in br["first"]] == [pytest.approx(t[300]), pytest.approx(t[900])]
+    assert any("bridged" in n for n in run["info"]["notes"])
     segs = tb["segments"]
     assert len(segs) == 3
     g = run["t"]
-    for (a, b), (i0, i1) in zip([(t[0], t[600]), (t[601], t[1100]), (t[1101], t[-1])], segs):
+    for (a, b), (i0, i1) in zip([(t[0], t[600]), (t[601], t[1300]), (t[1301], t[-1])], segs):
         assert a <= g[i0] and g[i1 - 1] <= b  # every row of a segment between its own samples
         assert np.all(np.isfinite(run["w"][i0:i1]))
     gap_rows = (g > t[600]) & (g < t[601])
     assert gap_rows.sum() >= 9 and np.all(np.isnan(run["w"][gap_rows]))
+    # across a bridged drop the rows are the linear interpolation of the samples either side
+    rows = (g > t[900]) & (g < t[901])
+    assert rows.sum() >= 1
+    np.testing.assert_allclose(run["w"][rows, 0], np.interp(g[rows], t[900:902], w[900:902, 0]), rtol=1e-9)
     parts = attitude_segments(run)
     assert [p["rows"] for p in parts] == [tuple(s) for s in segs]
     assert all(np.all(np.isfinite(p["w"])) for p in parts)

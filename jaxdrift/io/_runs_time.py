@@ -112,6 +112,10 @@ def _describe(fname: str, tb: dict) -> str:
                f"{max(g['duration_s'] for g in gaps):.4g} s) split it into {len(tb['segments'])} segment(s), "
                f"never interpolated across") if gaps else ""
     filt = f"; low-pass filtered first: {', '.join(tb['filtered'])}" if tb["filtered"] else ""
+    br = tb.get("bridged") or {}
+    br_txt = ("; dropped samples bridged by the interpolation (at most "
+              f"{tb['bridge_samples']} in a row): " + ", ".join(f"{c} {b['missing_samples']} at {b['steps']} place(s)"
+                                                             for c, b in br.items())) if br else ""
     return (f"{fname}: time base {tb['fs']:.6g} Hz from the median step; jitter {100 * tb['jitter_std_rel']:.3g} % "
-            f"(std), {100 * tb['jitter_max_rel']:.3g} % (max){gap_txt}; channels resampled onto the uniform "
+            f"(std), {100 * tb['jitter_max_rel']:.3g} % (max){gap_txt}{br_txt}; channels resampled onto the uniform "
             f"grid by {tb['method']} interpolation{filt}")

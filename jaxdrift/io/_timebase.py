@@ -8,9 +8,12 @@ policy (docs/measured-data.md, "Time base"):
    for attitude runs), or ``1 / fs`` when ``--fs`` is given.
 2. **Jitter**: the relative step deviation ``(step - nominal) / nominal`` over the steps that are
    not gaps; its standard deviation and largest magnitude are reported.
-3. **Gaps**: a step longer than :data:`GAP_FACTOR` x nominal (1.5: at least one sample is missing;
-   the jitter of the real logs seen is below 0.25) is a gap. A gap splits the channel into
-   segments; nothing is interpolated across it: grid rows inside a gap are NaN.
+3. **Dropped samples and gaps**: a step longer than :data:`GAP_FACTOR` x nominal (1.5: at least
+   one sample is missing; the jitter of the real logs seen is below 0.25) is a missing stretch.
+   At most :data:`BRIDGE_SAMPLES` missing samples (a step shorter than ``BRIDGE_SAMPLES + 1.5``
+   nominal steps: a logger that drops a sample now and then) are **bridged**: interpolated like
+   any other step, and counted in ``bridged``. A longer one is a **gap**: it splits the channel
+   into segments; nothing is interpolated across it, grid rows inside a gap are NaN.
 4. **Resampling**: each channel is interpolated linearly (:data:`METHOD`) at the grid times inside
    its own segments. A channel whose nominal rate is more than :data:`FILTER_RATIO` times the
    grid's is first low-pass filtered: a Butterworth filter of order :data:`FILTER_ORDER`, run
@@ -33,12 +36,14 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["GAP_FACTOR", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
+__all__ = ["GAP_FACTOR", "BRIDGE_SAMPLES", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
            "sample_segments", "resample", "place_nearest", "row_segments", "build_time_base",
            "uniform_time_base", "segment_arrays", "run_block"]
 
 #: a step longer than GAP_FACTOR x the nominal step is a gap (a sample or more is missing)
 GAP_FACTOR = 1.5
+#: at most this many missing samples in a row are bridged by the interpolation, not a gap
+BRIDGE_SAMPLES = 2
 #: how samples are carried onto the grid
 METHOD = "linear"
 #: a channel faster than FILTER_RATIO x the grid rate is low-pass filtered before resampling
@@ -49,15 +54,17 @@ FILTER_CUTOFF = 0.8
 
 
 def step_stats(t: np.ndarray) -> dict:
-    """Nominal step (median), jitter and the indices of gap steps of increasing times ``t``."""
+    """Nominal step (median), jitter, the indices of gap steps and of bridged steps (a sample or
+    two dropped) of increasing times ``t``."""
     d = np.diff(t)
     nominal = float(np.median(d))
-    gap = d > GAP_FACTOR * nominal
-    dev = (d[~gap] - nominal) / nominal
+    missing = d > GAP_FACTOR * nominal
+    gap = d >= (BRIDGE_SAMPLES + GAP_FACTOR) * nominal
+    dev = (d[~missing] - nominal) / nominal
     return {"nominal_dt": nominal, "fs": 1.0 / nominal,
             "jitter_std_rel": float(np.std(dev)) if dev.size else 0.0,
             "jitter_max_rel": float(np.max(np.abs(dev))) if dev.size else 0.0,
-            "gap_steps": np.flatnonzero(gap)}
+            "gap_steps": np.flatnonzero(gap), "bridged_steps": np.flatnonzero(missing & ~gap)}
 
 
 def sample_segments(n: int, gap_steps: np.ndarray) -> list[tuple[int, int]]:
@@ -141,6 +148,21 @@ def _gaps(streams: dict, stats: dict) -> list[dict]:
             for (a, b), ch in sorted(gaps.items())]
 
 
+def _bridged(streams: dict, stats: dict) -> dict:
+    """What was bridged, per channel: the count of steps, the samples they miss, the longest, and
+    the first few (a log that drops a sample now and then drops hundreds)."""
+    out = {}
+    for name, (t, _) in streams.items():
+        i = stats[name]["bridged_steps"]
+        if len(i):
+            d = t[i + 1] - t[i]
+            miss = np.rint(d / stats[name]["nominal_dt"]).astype(int) - 1
+            out[name] = {"steps": int(len(i)), "missing_samples": int(np.maximum(miss, 1).sum()),
+                         "longest_s": float(d.max()),
+                         "first": [{"t_start": float(t[k]), "t_end": float(t[k + 1])} for k in i[:10]]}
+    return out
+
+
 def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
                     references: dict | None = None) -> tuple[np.ndarray, dict, dict, dict]:
     """The policy for channels on their own times: ``streams`` {name: (t, v)} (v (n,)),
@@ -181,12 +203,14 @@ def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
     fa = np.asarray(fracs)
     tb = {"nominal_dt": dt, "fs": 1.0 / dt, "jitter_std_rel": st_p["jitter_std_rel"],
           "jitter_max_rel": st_p["jitter_max_rel"], "gap_factor": GAP_FACTOR, "gaps": _gaps(streams, stats),
+          "bridge_samples": BRIDGE_SAMPLES, "bridged": _bridged(streams, stats),
           "segments": [list(s) for s in kept], "dropped_segments": [list(s) for s in dropped],
           "resampled": True, "method": METHOD, "filtered": filtered,
           "noise_variance_factor": float(np.mean((1 - fa) ** 2 + fa ** 2)) if fa.size else 1.0,
           "channels": {name: {"fs": s["fs"], "samples": int(len(streams[name][0])),
                               "jitter_std_rel": s["jitter_std_rel"], "jitter_max_rel": s["jitter_max_rel"],
-                              "gaps": int(len(s["gap_steps"]))} for name, s in stats.items()}}
+                              "gaps": int(len(s["gap_steps"])), "bridged": int(len(s["bridged_steps"]))}
+                       for name, s in stats.items()}}
     if fs:
         tb["primary_fs"] = st_p["fs"]
     return grid, data, refs, tb
@@ -220,6 +244,7 @@ def run_block(tb: dict | None) -> dict | None:
     """The time base as a report's ``run`` block shows it (JSON-ready; None without a record)."""
     if not tb:
         return None
-    keys = ("fs", "nominal_dt", "jitter_std_rel", "jitter_max_rel", "gap_factor", "gaps", "segments",
+    keys = ("fs", "nominal_dt", "jitter_std_rel", "jitter_max_rel", "gap_factor", "gaps", "bridge_samples",
+            "bridged", "segments",
             "analysed_segment", "resampled", "method", "filtered", "noise_variance_factor")
     return {k: tb[k] for k in keys if k in tb}
