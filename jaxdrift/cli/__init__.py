@@ -23,6 +23,7 @@ _SUBCOMMANDS = [
     "jaxdrift.cli._durability",
     "jaxdrift.cli._topics",
     "jaxdrift.cli._campaign",
+    "jaxdrift.cli._report",
 ]
 
 

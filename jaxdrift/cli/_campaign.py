@@ -27,12 +27,16 @@ campaign.toml with per-run file, map, units, fs, force, logger and repetitions:
 
 writes into DIR: campaign.json (schema jaxdrift.campaign/1), summary.md, runs/NAME.json (each
 run's own report), figures/ (forest_PARAM.png per joint parameter, damage_per_run.png) and
-cache/ (each run's result under the SHA-256 of its input, model, options and the jaxdrift
+index.html (one self-contained page: the joint parameters as forest plots with every run's
+interval, the consistency check, the runs linking to runs/NAME.html, each run's own page, the
+damage per run and section), cache/ (each run's result under the SHA-256 of its input, model, options and the jaxdrift
 version: a rerun recomputes only what changed; a run finished before a worker died is kept).
 
 Monte Carlo across processes: start the same command once per process with --jax-coordinator,
 --jax-processes and --jax-process-id (and one --scheduler for all): the force-noise draws of the
 campaign damage are spread over every process's devices; process 0 writes DIR.
+
+Ends with the joint findings on stdout (one line with -q).
 
 exit codes: 0 written, 2 bad input (nothing computed), 1 internal failure, 130 interrupted
 """
@@ -121,6 +125,34 @@ def run_campaign(args) -> int:
             c.warn(f"{cons['parameter']} differs between runs (p = {cons['p_value']:.3g}): "
                    + ", ".join(d["run"] for d in cons["disagreeing_runs"]))
     if pid == 0:
-        c.info(f"{len(runs) - len(failed)} of {len(runs)} runs diagnosed; wrote {args.out}/campaign.json, "
-               f"summary.md, runs/, figures/")
+        from ._report import finish
+
+        page, rc = c.guarded("campaign", lambda: write_pages(args.out, doc))
+        if rc:
+            return rc
+        finish(doc, {"wrote": f"{args.out}/campaign.json, summary.md, runs/", "page": page}, "campaign")
     return 0
+
+
+def write_pages(out: str, doc: dict) -> str:
+    """DIR/index.html and runs/NAME.html for each run's report (built from the JSON files)."""
+    import json
+    import os
+
+    from ._report import write_page
+
+    run_pages = {}
+    for r in doc.get("runs") or []:
+        rel = r.get("report")
+        if r.get("status") != "ok" or not rel or not os.path.isfile(os.path.join(out, rel)):
+            continue
+        with open(os.path.join(out, rel)) as fh:
+            rep = json.load(fh)
+        html_rel = os.path.splitext(rel)[0] + ".html"
+        write_page(os.path.join(out, html_rel), rep, "--out")
+        run_pages[str(r.get("name"))] = html_rel
+    with open(os.path.join(out, "campaign.json")) as fh:  # the page is made of the JSON alone
+        saved = json.load(fh)
+    index = os.path.join(out, "index.html")
+    write_page(index, saved, "--out", run_pages=run_pages)
+    return index

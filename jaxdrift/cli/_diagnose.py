@@ -27,6 +27,12 @@ Jittered time, gaps and channels at different rates are resampled onto a uniform
 across a gap; a reference stays on its own times); --strict-time refuses them instead. The run
 is checked for plausibility (units, dead channels, glitches) before anything is computed.
 
+Ends with the verdict on stdout (the findings with estimate, interval and whether confirmed,
+the gain, what could not be shown; one line with -q); --json - writes the report to stdout
+instead (the verdict then goes to stderr). --html PAGE.html also writes one self-contained page
+(figures inline, opens offline, prints); the report then carries the decimated signals behind
+its figures (series_preview), so `jaxdrift report REPORT.json --html PAGE.html` rebuilds it.
+
 exit codes: 0 report written, 2 bad input or unwritable output (nothing written),
 1 internal failure, 130 interrupted (Ctrl-C)
 """
@@ -49,7 +55,11 @@ def add_parser(subparsers) -> None:
                    help="vehicle model: all of a, b, m1, m2, m3, I, k1..k4, d1..d4, g (default: the seed's table)")
     g.add_argument("--sensors", metavar="SENSORS.json",
                    help="attitude runs: accelerometer positions {\"positions\": [[x, y, z], ...]}")
-    p.add_argument("--json", required=True, metavar="REPORT.json", help="where to write the report")
+    p.add_argument("--json", required=True, metavar="REPORT.json",
+                   help="where to write the report ('-': stdout, the summary then goes to stderr)")
+    p.add_argument("--html", metavar="PAGE.html",
+                   help="also write the report as one self-contained HTML page (and store the decimated "
+                        "signals behind its figures in the report: series_preview)")
     p.add_argument("--plots", metavar="DIR", help="also write figures (PNG) into this folder")
     p.add_argument("--series", metavar="OUT.csv|OUT.parquet",
                    help="vehicle runs: also write the measured, simulated and extended-model signals "
@@ -79,7 +89,9 @@ def run_diagnose(args) -> int:
     t_start = time.monotonic()
     if args.series and not str(args.series).lower().endswith((".csv", ".parquet", ".pq")):
         raise UsageError(f"--series {args.series}: the name must end in .csv or .parquet")
-    check_outputs([("--json", args.json, "file"), ("--series", args.series, "file"), ("--plots", args.plots, "dir")],
+    to_stdout = args.json == "-"
+    check_outputs([("--json", None if to_stdout else args.json, "file"), ("--html", args.html, "file"),
+                   ("--series", args.series, "file"), ("--plots", args.plots, "dir")],
                   [args.run, args.model, args.sensors])
     kind = _kind(read_header(args.run), args.map, args.run)
     opts = c.run_options(args)
@@ -106,6 +118,10 @@ def run_diagnose(args) -> int:
             from ..diagnosis.attitude._report import write_plots
 
             report, plots = diagnose_attitude(run, positions)
+            if args.html:
+                from ..report._preview import attitude_preview
+
+                preview = attitude_preview(run, plots, report)
         except UsageError:
             raise
         except Exception:  # noqa: BLE001 - anything else is our failure, not the user's
@@ -151,6 +167,11 @@ def run_diagnose(args) -> int:
 
                 bar.set_postfix_str("series")
                 write_table(args.series, vehicle_series(run, model, report), "--series")
+            if args.html:
+                from ..report._preview import vehicle_preview
+
+                bar.set_postfix_str("page")
+                preview = vehicle_preview(run, model, report)
             bar.update(1)
         except UsageError:
             raise
@@ -164,10 +185,20 @@ def run_diagnose(args) -> int:
         "diagnose", [args.run, args.model, args.sensors], model=model_desc,
         options={"kind": kind, **opts, "plots": args.plots, "series": args.series})
     report["provenance"]["reading"] = {k: v for k, v in reading.items() if k != "quantum"}
-    write_report(args.json, report, "--json")  # refuses inf/NaN: a degenerate fit is said in words
+    if args.html:
+        report["series_preview"] = preview  # additive: the signals behind the page's figures
+    from ._report import finish, json_to_stdout, write_page
+
+    if to_stdout:
+        json_to_stdout(report)  # refuses inf/NaN as write_report does
+    else:
+        write_report(args.json, report, "--json")  # refuses inf/NaN: a degenerate fit is said in words
+    if args.html:
+        write_page(args.html, report)
     bar.update(bar.total - bar.n)
     bar.close()
-    c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))
+    finish(report, {"report": None if to_stdout else args.json, "page": args.html, "series": args.series},
+           "diagnose", to_stderr=to_stdout)
     return 0
 
 

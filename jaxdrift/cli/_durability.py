@@ -21,6 +21,10 @@ writes into DIR: durability.json, section_forces.csv, section_forces.png,
 rainflow_histogram.png, damage_ratio.png, and jaxdrift-manifest.json (SHA-256 of each file,
 written last: a folder without it was not finished)
 
+Ends with the damage ratios on stdout (one line with -q). --html PAGE.html also writes one
+self-contained page (damage tables and plots, the section forces); durability.json then carries
+the decimated section forces behind it (series_preview).
+
 exit codes: 0 written, 2 bad input (nothing written), 1 internal failure
 """
 
@@ -44,6 +48,7 @@ def add_parser(subparsers) -> None:
                    help="the run's diagnosis report (jaxdrift diagnose --json); default: diagnose the run now")
     p.add_argument("--window", type=float, nargs=2, metavar=("T0", "T1"),
                    help="time window of the zoomed section-force plot [s] (default: 2 s around the largest f3)")
+    p.add_argument("--html", metavar="PAGE.html", help="also write the analysis as one self-contained HTML page")
     p.add_argument("--quiet", action="store_true", help="no progress bar (as the global -q)")
     from ._common import add_run_options
 
@@ -88,7 +93,8 @@ def run_durability(args) -> int:
 
     _check_args(args, UsageError)
     # before any computation: no input overwritten, every output writable
-    check_outputs([("--out", args.out, "dir", OUTPUT_FILES)], [args.run, args.model, args.report])
+    check_outputs([("--out", args.out, "dir", OUTPUT_FILES), ("--html", args.html, "file")],
+                  [args.run, args.model, args.report])
     try:
         model = read_model(args.model) if args.model else dict(DEFAULT_MODEL)
         run = load_run(args.run, "durability", model=model if args.model else None, **c.run_options(args))
@@ -113,16 +119,25 @@ def run_durability(args) -> int:
                                   report=report, progress=not args.quiet and c.VERBOSITY >= 1)
         res.summary["provenance"]["reading"] = {k: v for k, v in run.info.items() if k != "quantum"}
         res.summary["provenance"]["options"].update(c.run_options(args))
+        if args.html:
+            from ..report._preview import durability_preview
+
+            res.summary["series_preview"] = durability_preview(res)  # additive: the page's section forces
         return res, write_outputs(res, args.out, window=args.window)
 
     out, rc = c.guarded("durability", analyse)
     if rc:
         return rc
     res, written = out
-    s = res.summary
-    for v, r in s["damage_ratio_to_stabilised"].items():
-        band = s["monte_carlo"].get("damage_ratio_quantiles", {}).get(v)
-        extra = f" (noise 5-95 %: {band[0]:.3g}-{band[2]:.3g})" if band else ""
-        c.info(f"{v}: damage {r:.4g} x stabilised{extra}")
-    c.info(f"wrote {len(written)} files to {args.out}")
+    from ._report import finish, write_page
+
+    import os
+
+    with open(os.path.join(args.out, "durability.json")) as fh:  # the page is made of the JSON alone
+        doc = json.load(fh)
+    if args.html:
+        write_page(args.html, doc)
+    if args.quiet:
+        c.set_verbosity(0)
+    finish(doc, {"wrote": f"{len(written)} files to {args.out}", "page": args.html}, "durability")
     return 0

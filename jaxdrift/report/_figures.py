@@ -64,6 +64,15 @@ def _attr(s: str) -> str:
     return html.escape(str(s), quote=True)
 
 
+def _plain_log(ax, axis: str = "y") -> None:
+    """Log-axis tick labels as plain text (the default ones are mathtext, which is off here)."""
+    from matplotlib.ticker import FuncFormatter, NullFormatter
+
+    a = ax.yaxis if axis == "y" else ax.xaxis
+    a.set_major_formatter(FuncFormatter(lambda v, _: f"{v:.3g}"))
+    a.set_minor_formatter(NullFormatter())
+
+
 def _markers(ax, markers, t0=0.0):
     spans = lines = False
     for m in markers or []:
@@ -169,6 +178,7 @@ def bar_figure(categories, series, ylabel: str, title: str = "", log: bool = Fal
     ax.set_ylabel(ylabel)
     if log:
         ax.set_yscale("log")
+        _plain_log(ax)
     if title:
         ax.set_title(title, fontsize=9)
     if len(series) > 1 or any(s[2] is not None for s in series):
@@ -183,6 +193,8 @@ def spectrum_figure(spectra: dict, title: str = "") -> str:
     for name, s in spectra.items():
         ax.loglog(s["f"], np.maximum(np.asarray(s["y"], float), 1e-300), lw=0.9, label=s.get("label", name))
         unit = s.get("unit", unit)
+    _plain_log(ax, "x")
+    _plain_log(ax, "y")
     ax.set_xlabel("frequency [Hz]")
     ax.set_ylabel(f"power spectral density [{unit}]")
     ax.legend(fontsize=7)

@@ -583,20 +583,36 @@ def campaign_page(doc: dict, title: str, run_pages: dict | None = None) -> str:
 def campaign_damage_html(dur: dict) -> str:
     out = []
     per = dur.get("per_run")
+    sections = [str(x) for x in dur.get("sections") or []]
     if isinstance(per, list) and per and all(isinstance(p, dict) for p in per):
         names, series = [], {}
         for p in per:
             names.append(str(p.get("name", p.get("run", "?"))))
-            dmg = p.get("campaign_damage") or p.get("damage") or {}
-            for var, secs in (dmg.items() if isinstance(dmg, dict) else []):
-                for sec, v in (secs.items() if isinstance(secs, dict) else [("", secs)]):
-                    x = _number(v)
-                    series.setdefault(f"{var} {sec}".strip(), {})[names[-1]] = x
+            dmg = p.get("damage_x_repetitions") or p.get("damage") or {}
+            for var, vals in (dmg.items() if isinstance(dmg, dict) else []):
+                if isinstance(vals, list):
+                    pairs = zip(sections or [f"#{i}" for i in range(len(vals))], vals)
+                elif isinstance(vals, dict):
+                    pairs = vals.items()
+                else:
+                    pairs = [("", vals)]
+                for sec, v in pairs:
+                    series.setdefault(f"{var} {sec}".strip(), {})[names[-1]] = _number(v)
         if series:
             keep = [k for k in series if k.startswith(("stabilised", "extended", "measured"))] or list(series)
-            out.append(fig(F.bar_figure(names, [(k, [series[k].get(n) if series[k].get(n) is not None else float("nan") for n in names], None) for k in keep[:6]],
-                                        "repetitions x damage [N^K]", "Damage per run and section", log=True)))
-    out.append(generic(dur))
+            out.append(fig(F.bar_figure(names, [(k, [series[k].get(n) if series[k].get(n) is not None else float("nan")
+                                                     for n in names], None) for k in keep[:6]],
+                                        "repetitions x damage [N^K]", "Damage per run and section (log scale)", log=True),
+                           "Each run's pseudo-damage times its repetitions, per section force and variant."))
+            rows = "".join(f"<tr><td class=mono>{esc(n)}</td>" + "".join(
+                f"<td class=n>{esc(num(series[k].get(n), 4))}</td>" for k in series) + "</tr>" for n in names)
+            out.append("<table><thead><tr><th>run</th>" + "".join(f"<th>{esc(k)}</th>" for k in series)
+                       + f"</tr></thead><tbody>{rows}</tbody></table>")
+    ratios = dur.get("damage_ratio_to_stabilised")
+    if isinstance(ratios, dict):
+        out.append("<p>Campaign damage / " + esc(dur.get("reference", "stabilised")) + ": "
+                   + ", ".join(f"{esc(k)} {esc(num(_number(v), 4))}" for k, v in ratios.items()) + "</p>")
+    out.append(f"<details><summary>the whole durability block</summary>{generic(dur)}</details>")
     return "".join(out)
 
 
