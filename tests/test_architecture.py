@@ -209,10 +209,10 @@ def test_public_names_resolve(name):
 
 
 def test_seed_table_points_at_real_code():
-    """Every ``file:function`` in docs/architecture.md's seed table names a real top-level definition."""
+    """Every ``file:function`` in docs/explanation/architecture.md's seed table names a real top-level definition."""
     import re
 
-    doc = (ROOT.parent / "docs" / "architecture.md").read_text()
+    doc = (ROOT.parent / "docs" / "explanation" / "architecture.md").read_text()
     refs = re.findall(r"`(jaxdrift/[\w/]+\.py):(\w+)`", doc)
     assert len(refs) >= 30, "the seed table lost its entries"
     missing = []
@@ -222,7 +222,7 @@ def test_seed_table_points_at_real_code():
         defined |= {t.id for n in tree.body if isinstance(n, ast.Assign) for t in n.targets if isinstance(t, ast.Name)}
         if name not in defined:
             missing.append(f"{path}:{name}")
-    assert not missing, f"docs/architecture.md names code that does not exist: {missing}"
+    assert not missing, f"docs/explanation/architecture.md names code that does not exist: {missing}"
 
 
 # ----------------------------------------------------------------------------- no shared mutable state

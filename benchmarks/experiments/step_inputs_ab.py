@@ -1,6 +1,6 @@
 """What the carried step inputs changed in the fixed-step loop, A/B in one process, interleaved rounds.
 
-Found (not committed as JSON; transcribed in ``benchmarks/results/performance-recorded.json``,
+Found (not committed as JSON; not kept,
 group ``step_inputs_ab``, loaded 2-core AMD EPYC): carrying the step inputs took the engine float64
 from 185 to 106 CPU ns per path-step at XLA's default vector width (load 11.8) and from 162 to 70 at
 512 bits (load 4.2); the fast mode with unroll 1 to 56 and 44. Shipped (``_CARRY_STEP_ARGS``).

@@ -1,6 +1,6 @@
 """XLA CPU flags on the half-car study: jaxdrift (float64, fast mode) and diffrax, fresh processes.
 
-Found (not committed as JSON; transcribed in ``benchmarks/results/performance-recorded.json``,
+Found (not committed as JSON; not kept,
 group ``xla_flags``, load 9.9 -> 7.0): ``--xla_cpu_prefer_vector_width=512`` took jaxdrift float64
 from 94 to 66 CPU ns per path-step and the fast mode from 59 to 42 with identical results (shipped
 through ``use_all_cores``); the legacy emitters were slower (135, 88); no eigen threads changed

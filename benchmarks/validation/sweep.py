@@ -484,34 +484,8 @@ def markdown(s: dict) -> str:
     L = [f"# Independent validation sweep: {s['kind']}", "",
          f"{s['runs']} runs (design seed {s['seed']}, generator `benchmarks/validation/gen_{s['kind']}.py`), "
          f"diagnosed by jaxdrift {s.get('jaxdrift_commit', '?')}; {s['errors']} failed with an error. "
-         f"Reproduce: `{s['command']}`", "",
-         "| measure | result | target |", "|---|---|---|",
-         f"| right cause first, single-effect runs | {s['single']['right_first']}/{s['single']['n']} "
-         f"({s['single']['right_first_pct']} %) | >= 95 % |",
-         f"| ... or declared indistinguishable | {s['single']['right_or_declared']}/{s['single']['n']} | |",
-         f"| both effects in the first two, pairs | {s['pair']['both_in_first_two']}/{s['pair']['n']} "
-         f"({s['pair']['both_in_first_two_pct']} %) | >= 90 % |",
-         f"| ... or declared indistinguishable | {s['pair']['right_or_declared']}/{s['pair']['n']} | |",
-         f"| false alarms (systematic cause first), effect-free runs | {s['effect_free']['false_alarms']}/"
-         f"{s['effect_free']['n']} ({s['effect_free']['false_alarm_pct']} %) | <= 5 % |",
-         f"| true values inside the 95 % interval, per effect | {s['coverage']['covered']}/{s['coverage']['effects']} "
-         f"({s['coverage']['covered_pct']} %) | |",
-         f"| runs with every true value inside its interval | {s['coverage']['runs_all_covered']}/"
-         f"{s['coverage']['runs']} ({s['coverage']['runs_all_covered_pct']} %) | >= 90 % |",
-         f"| noise level within 1.5x of the truth | {s['noise_within_1.5x']['k']}/{s['noise_within_1.5x']['n']} "
-         f"({s['noise_within_1.5x']['pct']} %) | 100 % |",
-         *([f"| runs whose right systematic findings are all confirmed (in the extended model) | "
-            f"{s['confirmation']['all_right_confirmed']}/{s['confirmation']['runs_with_right_systematic_finding']} "
-            f"({s['confirmation']['all_right_confirmed_pct']} %) | >= 95 % |",
-            f"| delays right: single-effect runs / pairs with a delay | {s['delays']['single']['right']}/"
-            f"{s['delays']['single']['n']} / {s['delays']['pair']['right']}/{s['delays']['pair']['n']} | as often |",
-            "| noise intervals holding the truth, by kind | " + ", ".join(
-                f"{k} {v['covered']}/{v['n']}" for k, v in s["noise_coverage_by_kind"].items()) + " | all |"]
-           if "confirmation" in s else []),
-         *_gain_rows(s.get("gain_by_resimulation")),
-         *(_gain_rows(s["gain_by_resimulation_dynamic"], " (pitch error above the drift band)")
-           if s.get("gain_by_resimulation_dynamic") else []),
-         "", f"CPU: {s['cpu_s']['total']} s in all, {s['cpu_s']['mean']} s per run, at most {s['cpu_s']['max']} s.", "",
+         f"Reproduce: `{s['command']}`", "", summary_table(s), "",
+         f"CPU: {s['cpu_s']['total']} s in all, {s['cpu_s']['mean']} s per run, at most {s['cpu_s']['max']} s.", "",
          "## Confusion: true cause (single-effect and effect-free runs) x first reported cause", ""]
     cols = sorted({c for row in s["confusion"].values() for c in row})
     L += ["| true \\ first | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
@@ -538,6 +512,38 @@ def markdown(s: dict) -> str:
               f"reported {', '.join(x['reported'])}; {x['metric']} {_fmt(x['before'])} -> {_fmt(x['after'])}"
               + (" (scored right)" if x["right"] else "") for x in g["not_confirmed"]]
     return "\n".join(L) + "\n"
+
+
+def summary_table(s: dict) -> str:
+    """The sweep's summary table (measure, result, target) from its JSON summary; the docs quote it
+    (``benchmarks/doc_tables.py``)."""
+    L = ["| measure | result | target |", "|---|---|---|",
+         f"| right cause first, single-effect runs | {s['single']['right_first']}/{s['single']['n']} "
+         f"({s['single']['right_first_pct']} %) | >= 95 % |",
+         f"| ... or declared indistinguishable | {s['single']['right_or_declared']}/{s['single']['n']} | |",
+         f"| both effects in the first two, pairs | {s['pair']['both_in_first_two']}/{s['pair']['n']} "
+         f"({s['pair']['both_in_first_two_pct']} %) | >= 90 % |",
+         f"| ... or declared indistinguishable | {s['pair']['right_or_declared']}/{s['pair']['n']} | |",
+         f"| false alarms (systematic cause first), effect-free runs | {s['effect_free']['false_alarms']}/"
+         f"{s['effect_free']['n']} ({s['effect_free']['false_alarm_pct']} %) | <= 5 % |",
+         f"| true values inside the 95 % interval, per effect | {s['coverage']['covered']}/{s['coverage']['effects']} "
+         f"({s['coverage']['covered_pct']} %) | |",
+         f"| runs with every true value inside its interval | {s['coverage']['runs_all_covered']}/"
+         f"{s['coverage']['runs']} ({s['coverage']['runs_all_covered_pct']} %) | >= 90 % |",
+         f"| noise level within 1.5x of the truth | {s['noise_within_1.5x']['k']}/{s['noise_within_1.5x']['n']} "
+         f"({s['noise_within_1.5x']['pct']} %) | 100 % |",
+         *([f"| runs whose right systematic findings are all confirmed (in the extended model) | "
+            f"{s['confirmation']['all_right_confirmed']}/{s['confirmation']['runs_with_right_systematic_finding']} "
+            f"({s['confirmation']['all_right_confirmed_pct']} %) | >= 95 % |",
+            f"| delays right: single-effect runs / pairs with a delay | {s['delays']['single']['right']}/"
+            f"{s['delays']['single']['n']} / {s['delays']['pair']['right']}/{s['delays']['pair']['n']} | as often |",
+            "| noise intervals holding the truth, by kind | " + ", ".join(
+                f"{k} {v['covered']}/{v['n']}" for k, v in s["noise_coverage_by_kind"].items()) + " | all |"]
+           if "confirmation" in s else []),
+         *_gain_rows(s.get("gain_by_resimulation")),
+         *(_gain_rows(s["gain_by_resimulation_dynamic"], " (pitch error above the drift band)")
+           if s.get("gain_by_resimulation_dynamic") else [])]
+    return "\n".join(L)
 
 
 def _gain_rows(g: dict | None, what: str = "") -> list[str]:
