@@ -197,6 +197,8 @@ def run_diagnose(args) -> int:
         write_page(args.html, report)
     bar.update(bar.total - bar.n)
     bar.close()
+    if not to_stdout:
+        c.info(f"report written to {args.json}" + (f", series to {args.series}" if args.series else ""))
     finish(report, {"report": None if to_stdout else args.json, "page": args.html, "series": args.series},
            "diagnose", to_stderr=to_stdout)
     return 0
