@@ -53,7 +53,10 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     - ``q_ref_t`` (m,) and ``q_ref_q`` (m, 4): the reference at its own times (None without);
       ``q_ref`` places each sample on the nearest grid row (NaN elsewhere).
     - ``w_recorded_t`` (k,) and ``w_recorded`` (k, 3): the rates as recorded, before resampling
-      (where the three share their times; None for a run used as it is: then ``t``, ``w``).
+      (where the three share their times; None for a run used as it is: then ``t``, ``w``);
+    - ``onboard_bias`` and ``events``: what a PX4 log says besides (:func:`jaxdrift.io._logs.ulog_context`:
+      the flight controller's own gyro-bias estimate, gyro and estimator switches, attitude
+      resets); None and [] for other formats.
     """
     try:
         run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks,
@@ -97,7 +100,13 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     # the rounding of the rate (and accelerometer) columns as written, to tell noise from
     # rounding: the RMS rounding error sqrt(mean(step^2) / 12) of the cells' last digits
     acc_cols = [c for c in ch if c.startswith("a") and c[1:-1].isdigit()]
+    context = {}
+    if run.info["format"] == "ulog":
+        from ._logs import ulog_context
+
+        context = ulog_context(path, run.info["columns"].get("wx"))
     return {"path": path, "t": run.t, "dt": run.dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra,
+            "onboard_bias": context.get("onboard_bias"), "events": context.get("events", []),
             "quantisation": _text_rounding(path, run.info, list(CHANNELS)),
             "acc_quantisation": _text_rounding(path, run.info, acc_cols),
             "warnings": run.warnings, "info": run.info, "time_base": run.time_base,

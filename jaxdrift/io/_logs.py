@@ -23,7 +23,7 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = ["LOG_FORMATS", "ULOG_MISSING", "ROS_MISSING", "is_log", "log_format", "parse_channel",
-           "read_log", "default_map", "list_topics", "log_info"]
+           "read_log", "default_map", "list_topics", "log_info", "ulog_context"]
 
 LOG_FORMATS = ("ulog", "bag")
 ULOG_MISSING = ("reading PX4 ULog files (.ulg) needs the optional extra 'ulog': "
@@ -434,3 +434,109 @@ def log_info(path) -> dict:
     except Exception:  # noqa: BLE001
         return {}
     return {k: u.msg_info_dict.get(k) for k in ("ver_hw", "sys_name", "ver_sw") if k in u.msg_info_dict}
+
+
+# ------------------------------------------------------------------ what a PX4 log says besides
+
+#: the topics :func:`ulog_context` reads (each optional)
+_CONTEXT_TOPICS = ["estimator_sensor_bias", "sensor_selection", "estimator_selector_status", "vehicle_attitude"]
+
+
+def _step_value(t_ev, v_ev, t):
+    """A piecewise-constant signal (value v_ev[i] from t_ev[i] on; the first before it) at ``t``."""
+    i = np.clip(np.searchsorted(t_ev, t, side="right") - 1, 0, len(t_ev) - 1)
+    return v_ev[i]
+
+
+def _changes(t, v):
+    """(time, before, after) of every change of an integer signal."""
+    v = np.asarray(v)
+    k = np.nonzero(v[1:] != v[:-1])[0] + 1
+    return [(float(t[i]), int(v[i - 1]), int(v[i])) for i in k]
+
+
+def ulog_context(path, gyro_map: str | None = None) -> dict:
+    """What a PX4 log says about its gyro besides the rates, for the attitude diagnosis:
+
+    - ``onboard_bias``: the flight controller's own gyro-bias estimate (``estimator_sensor_bias``),
+      ``{"t", "b" (m, 3), "topic", "device_ids"}``: at each time the instance of the primary
+      estimator (``estimator_selector_status.primary_instance``, else instance 0), and only its
+      samples for the gyro in use (``sensor_selection.gyro_device_id``, which
+      ``sensor_combined`` follows); None where the log has none;
+    - ``events``: ``[{"t", "kind", "detail"}]`` with ``gyro_switch`` (the primary gyro's device id
+      changes), ``estimator_switch`` (the primary estimator instance changes) and
+      ``attitude_reset`` (``vehicle_attitude.quat_reset_counter`` steps: a heading or state reset).
+
+    ``gyro_map``: the ``wx`` channel read (``TOPIC:INSTANCE.FIELD``): the context applies to
+    ``sensor_combined`` only (a mapped ``sensor_gyro`` instance is one sensor: no switch, and the
+    estimators' bias is matched by its device id where the log has it). Empty dict for other logs."""
+    if log_format(path) != "ulog":
+        return {}
+    topic = parse_channel(gyro_map, "ulog")[0] if gyro_map else "sensor_combined"
+    try:
+        data_list = _ulog_data(path, _CONTEXT_TOPICS + (["sensor_gyro"] if topic == "sensor_gyro" else []))[0]
+    except InputError:
+        return {}
+    sets = {}
+    for d in data_list:
+        sets.setdefault(d.name, {})[d.multi_id] = d
+
+    def tv(d, field):
+        t = np.asarray(d.data["timestamp"], np.float64) * 1e-6
+        ok = t > 0
+        return t[ok], np.asarray(d.data[field])[ok]
+
+    events = []
+    sel_t = sel_id = None
+    if topic == "sensor_combined" and "sensor_selection" in sets and "gyro_device_id" in sets["sensor_selection"][0].data:
+        sel_t, sel_id = tv(sets["sensor_selection"][0], "gyro_device_id")
+        live = sel_id != 0
+        sel_t, sel_id = sel_t[live], sel_id[live]
+        events += [{"t": a, "kind": "gyro_switch", "detail": f"primary gyro device {b} -> {c}"}
+                   for a, b, c in _changes(sel_t, sel_id)]
+    elif topic == "sensor_gyro" and "sensor_gyro" in sets:
+        inst = parse_channel(gyro_map, "ulog")[1]
+        d = sets["sensor_gyro"].get(inst)
+        if d is not None and "device_id" in d.data:
+            sel_t, sel_id = tv(d, "device_id")
+            sel_t, sel_id = sel_t[:1], sel_id[:1]
+    pri_t = pri = None
+    est = sets.get("estimator_selector_status", {}).get(0)
+    if est is not None and "primary_instance" in est.data:
+        pri_t, pri = tv(est, "primary_instance")
+        events += [{"t": a, "kind": "estimator_switch", "detail": f"primary estimator instance {b} -> {c}"}
+                   for a, b, c in _changes(pri_t, pri)]
+    att = sets.get("vehicle_attitude", {}).get(0)
+    if att is not None and "quat_reset_counter" in att.data:
+        at, cnt = tv(att, "quat_reset_counter")
+        events += [{"t": a, "kind": "attitude_reset", "detail": f"reset counter {b} -> {c}"}
+                   for a, b, c in _changes(at, cnt)]
+    onboard = None
+    esb = sets.get("estimator_sensor_bias", {})
+    if esb:
+        ts, bs, ids = [], [], set()
+        for inst, d in sorted(esb.items()):
+            if "gyro_bias[0]" not in d.data:
+                continue
+            t, _ = tv(d, "gyro_bias[0]")
+            b = np.column_stack([tv(d, f"gyro_bias[{i}]")[1] for i in range(3)]).astype(np.float64)
+            keep = np.ones(len(t), bool)
+            if pri is not None:
+                keep &= _step_value(pri_t, pri, t) == inst
+            elif len(esb) > 1:
+                keep &= inst == min(esb)
+            if "gyro_bias_valid" in d.data:
+                keep &= tv(d, "gyro_bias_valid")[1].astype(bool)
+            if sel_id is not None and "gyro_device_id" in d.data:
+                dev = tv(d, "gyro_device_id")[1]
+                keep &= dev == _step_value(sel_t, sel_id, t)
+                ids |= {int(x) for x in dev[keep]}
+            ts.append(t[keep])
+            bs.append(b[keep])
+        if ts and sum(len(t) for t in ts):
+            t = np.concatenate(ts)
+            order = np.argsort(t, kind="stable")
+            onboard = {"t": t[order], "b": np.concatenate(bs)[order], "topic": "estimator_sensor_bias",
+                       "device_ids": sorted(ids)}
+    events.sort(key=lambda e: e["t"])
+    return {"onboard_bias": onboard, "events": events}

@@ -15,7 +15,8 @@ from typing import ClassVar, final
 from ._common import finding
 
 __all__ = ["AttitudeCause", "GYRO_NOISE", "GYRO_BIAS", "GYRO_SCALE", "GYRO_BIAS_DRIFT", "SENSOR_POSITION",
-           "NONRIGID", "ACCEL_NOISE", "REFERENCE_INCONSISTENT", "ATTITUDE_CAUSES"]
+           "NONRIGID", "ACCEL_NOISE", "REFERENCE_INCONSISTENT", "VIBRATION",
+           "ATTITUDE_CAUSES"]
 
 
 class AttitudeCause:
@@ -45,10 +46,12 @@ GyroBiasDrift = _kind("GyroBiasDrift", "gyro_bias_drift", "rad/s/sqrt(s)", "The 
 SensorPosition = _kind("SensorPosition", "sensor_position", "m", "An accelerometer's true position = given position + estimate.")
 Nonrigid = _kind("Nonrigid", "nonrigid", "m/s^2", "RMS of the array's rigidity residual beyond its noise.")
 AccelNoise = _kind("AccelNoise", "accel_noise", "m/s^2", "White noise of the accelerometers.")
+Vibration = _kind("Vibration", "vibration", "rad/s", "High-frequency rate content that comes and goes (motors) or has spectral peaks: not white noise; estimate = the largest axis's per-sample level.")
 ReferenceInconsistent = _kind("ReferenceInconsistent", "reference_inconsistent", "rad/s", "The reference attitude turns where the gyro says the body is still: not a gyro error.")
 
 GYRO_NOISE, GYRO_BIAS, GYRO_SCALE, GYRO_BIAS_DRIFT = GyroNoise(), GyroBias(), GyroScale(), GyroBiasDrift()
 SENSOR_POSITION, NONRIGID, ACCEL_NOISE = SensorPosition(), Nonrigid(), AccelNoise()
 REFERENCE_INCONSISTENT = ReferenceInconsistent()
+VIBRATION = Vibration()
 ATTITUDE_CAUSES = (GYRO_NOISE, GYRO_BIAS, GYRO_SCALE, GYRO_BIAS_DRIFT, SENSOR_POSITION, NONRIGID, ACCEL_NOISE,
-                   REFERENCE_INCONSISTENT)
+                   REFERENCE_INCONSISTENT, VIBRATION)

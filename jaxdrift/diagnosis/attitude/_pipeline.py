@@ -3,8 +3,10 @@
 :func:`diagnose_attitude` runs, in this order:
 
 1. :func:`gyro_noise_step`: white gyro noise from high-order differences, and the floors below which
-   an effect is the file's discretisation;
-2. :func:`reference_step` (two or more reference rows): where the reference is consistent with the
+   an effect is the file's discretisation; :func:`._vibration.vibration_step`: vibration told apart
+   from that noise (the noise then from the quiet spans, or an upper bound);
+2. :func:`._alignment.alignment_step` then :func:`reference_step` (two or more reference rows): the
+   reference's clock offset and frame rotation against the gyro, applied where significant; where the reference is consistent with the
    gyro (:mod:`._consistency`: ``reference_inconsistent`` spans are left out) and where it says the
    body does not move (the gyro noise is an estimate there, an upper bound otherwise:
    :func:`._realworld.noise_kind_step`), then biases, scales and bias drift from the reference
@@ -62,6 +64,8 @@ from ._common import (
 )
 from ._gyro import cluster_cov, half_rate_fit, reference_fit, reml_drift, rw_cov, static_segment
 from ._noise import allan, estimate_white_noise
+from ._alignment import alignment_step
+from ._vibration import vibration_step
 from ._report import assemble_report
 
 __all__ = ["AttitudeState", "diagnose_attitude"]
@@ -95,7 +99,9 @@ class AttitudeState:
     sigma_axis: np.ndarray | None = None
     noise_var_rate: float = 0.0
     noise_finding: dict | None = None
-    noise_findings: list = field(default_factory=list)  # further noise findings (accel_noise), after gyro_noise
+    noise_findings: list = field(default_factory=list)  # further noise findings (vibration, accel_noise), after gyro_noise
+    vibration: dict | None = None  # vibration_step: spans, level per axis, peaks
+    alignment: dict | None = None  # alignment_step: the reference's clock offset and frame rotation
     scale_se: np.ndarray = field(default_factory=lambda: np.zeros(3))  # of the applied corrections
     bias_se: np.ndarray = field(default_factory=lambda: np.zeros(3))
     scale_floor: float = 0.0
@@ -112,6 +118,7 @@ class AttitudeState:
     sim_err: dict = field(default_factory=dict)
     gain: dict | None = None
     n_ref: int = 0
+    bias_fit: dict = field(default_factory=dict)  # channel -> (estimate, 95 % half-width), named or not
 
     @property
     def t(self):
@@ -133,16 +140,44 @@ class AttitudeState:
 def diagnose_attitude(run, positions=None):
     """The analysis behind :func:`run_attitude_diagnosis` on an already validated run dict.
 
+    A log whose primary gyro switches (:func:`._context.sensor_parts`) is diagnosed part by part,
+    each part its own sensor (:func:`._context.merge_parts`); the flight controller's own bias
+    estimate, where the log has one, is set beside every bias (:func:`._context.onboard_block`).
+
     Returns ``(report, plots)``: the report dict (docs/measured-data.md) and the series behind the
     figures (:func:`jaxdrift.diagnosis.attitude._report.write_plots`).
     """
+    from ._context import merge_parts, onboard_block, sensor_parts, slice_run
+
+    parts, dropped = sensor_parts(run)
+    if parts is None:
+        s = _diagnose_state(run, positions)
+        report = assemble_report(s)
+        onboard_block(report, run, s.bias_fit, (float(run["t"][0]), float(run["t"][-1])))
+        report["run"]["events"] = run.get("events") or []
+        return report, s.plots
+    done = []
+    for i0, i1, label in parts:
+        sub = slice_run(run, i0, i1)
+        s = _diagnose_state(sub, positions)
+        rep = assemble_report(s)
+        onboard_block(rep, sub, s.bias_fit, (float(sub["t"][0]), float(sub["t"][-1])))
+        done.append((rep, s.plots, label, (float(sub["t"][0]), float(sub["t"][-1]))))
+    report, plots = merge_parts(done, run, dropped)
+    return report, plots
+
+
+def _diagnose_state(run, positions=None):
+    """The pipeline on one sensor's run: the filled state."""
     s = AttitudeState(run=run, positions=positions)
     if run.get("extra_columns"):
         print(f"jaxdrift diagnose: warning: ignoring column(s) {', '.join(run['extra_columns'])}", file=sys.stderr)
     gyro_noise_step(s)
+    vibration_step(s)
     q_ref = run["q_ref"]
     s.n_ref = 0 if q_ref is None else int(np.sum(np.isfinite(q_ref[:, 0])))
     if s.n_ref >= 2:
+        alignment_step(s)
         reference_step(s)
     else:
         noise_kind_step(s)
@@ -155,7 +190,7 @@ def diagnose_attitude(run, positions=None):
         s.not_observed.append("gyro bias (no reference attitude, no static segment, no accelerometer array)")
         s.not_observed.append("gyro scale and bias drift (need a reference attitude)")
     allan_step(s)
-    return assemble_report(s), s.plots
+    return s
 
 
 def gyro_noise_step(s):
@@ -231,6 +266,12 @@ def reference_step(s):
             sample_var = sample_var * r
             fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     r = residual_noise_scale(fit0)
+    if s.vibration is not None:
+        # vibration averages out between reference rows: the intervals carry what their residuals
+        # show, not the white noise of the quiet spans (the per-sample level stays that noise)
+        s.noise_var_rate *= r
+        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+        r = residual_noise_scale(fit0)
     if r > 1.5 and np.any(sample_var > 0):
         # the interval errors are r times (in variance) what white noise of the differences' level
         # gives (a low-pass filtered gyro: its differences see less noise than its integral carries):
@@ -363,7 +404,7 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         elif not 0.5 < s_hat < 2.0:
             not_determined(s, GYRO_SCALE.name, ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
                            "the gyro disagree in a way no scale explains" + why_lost)
-        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
+        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl, s.vibration is not None) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
             s.scale[c] = s_hat
             s.findings.append(GYRO_SCALE.finding(
                 float(s_hat), [float(s_hat - s_half), float(s_hat + s_half)],
@@ -397,7 +438,8 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
             s.corrections[ch] = replace(s.corrections[ch], bias_drift=float(d["K"]))
         s.bias_se[c] = b0_half / z95
-        if abs(b0) / _test_se(b0_se, b0_half / z95, infl) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
+        s.bias_fit[ch] = (float(b0), float(b0_half))
+        if abs(b0) / _test_se(b0_se, b0_half / z95, infl, s.vibration is not None) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
             s.corrections[ch] = replace(s.corrections[ch], bias=float(b0))
             if c not in drift:
                 s.bias_path[:, c] = b0
@@ -408,12 +450,13 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
                 abs(b0) / b0_se, channel=ch))
 
 
-def _test_se(se_model, se_interval, infl):
+def _test_se(se_model, se_interval, infl, coloured=False):
     """The standard error a finding is tested with: the model's (residual-inflated) one; where the
     residuals between reference rows are more than twice the white-noise level in variance (a real
     reference, with its own errors and a gyro filtered before logging: the white model is evidently
-    wrong), the interval's one (cluster-robust, integration) when larger."""
-    return max(se_model, se_interval) if infl > 2.0 else se_model
+    wrong) or coloured by vibration (``coloured``), the interval's one (cluster-robust,
+    integration) when larger."""
+    return max(se_model, se_interval) if infl > 2.0 or coloured else se_model
 
 
 def _degenerate_reason(fit, i):
@@ -510,6 +553,7 @@ def static_segment_step(s):
         b = float(st["mean"][c])
         se = math.sqrt(max(wn["var"][c], s.floor**2) / st["n"])
         s.bias_se[c] = se
+        s.bias_fit[ch] = (b, float(z95 * se))
         s.corrections[ch] = replace(s.corrections[ch], bias=b)
         s.bias_path[:, c] = b
         if abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:

@@ -48,7 +48,11 @@ def _noise_interval(wn, dt):
 
 
 def noise_kind_step(s):
-    """Gyro noise from a span where the reference says the body does not move, else an upper bound."""
+    """Gyro noise from a span where the reference says the body does not move, else an upper bound.
+    Where the gyro vibrates (:mod:`._vibration`) the noise was measured on its quiet spans: a body
+    held still by the reference may still shake."""
+    if getattr(s, "vibration", None) is not None:
+        return
     dt = s.dt
     i0, i1 = _longest(s.still)
     if i1 - i0 >= max(256, STILL_MIN_S / dt):

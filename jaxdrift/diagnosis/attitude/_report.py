@@ -51,7 +51,8 @@ def assemble_report(s):
         },
         "run": {"rows": int(n), "dt": float(dt), "duration_s": float(T), "reference_rows": s.n_ref,
                 "sensors": 0 if s.positions is None else int(s.positions.shape[0]),
-                "time_base": run_block(s.run.get("time_base"))},
+                "time_base": run_block(s.run.get("time_base")),
+                "reference_alignment": s.alignment},
     }
     check_report_finite(report)  # every attitude report, wherever it is made (CLI, API, tests, sweeps)
     return report

@@ -1,0 +1,170 @@
+"""The reference's clock and frame against the gyro's, estimated before the reference is judged.
+
+An optical motion-capture system tracks a body frame defined by its markers, never exactly the IMU's
+frame, and stamps its samples on its own clock: a rotation of a degree between the frames and a few
+milliseconds between the clocks are normal. Compared as if aligned, every fast turn leaves a large
+residual (at 25 rad/s, 4 ms is 0.1 rad), which the consistency check reads as an inconsistent
+reference and the bias fit as noise.
+
+:func:`alignment_step` estimates, from the reference's own rates (the rotation between consecutive
+reference samples over their step, at the step's midpoint) and the gyro's:
+
+1. the **clock offset** tau (the reference's stamps late by tau): the lag that best matches the rate
+   magnitudes (the reference's rates over spans of :data:`SPAN_S`), which no frame rotation changes (a grid search over +-:data:`MAX_OFFSET_S` at a quarter
+   of the gyro's step, refined by a parabola);
+2. the **frame rotation** R (gyro rate = R x reference body rate + bias): the linear least-squares map
+   with a bias, projected on the nearest rotation (polar decomposition);
+
+each with a 95 % interval from :data:`N_BLOCKS` time blocks (the spread of the block estimates over
+sqrt(blocks)). Both are applied (the reference re-stamped and turned into the gyro's frame) where
+they are significant (beyond :data:`Z_APPLY` standard errors) and beyond :data:`MIN_OFFSET_STEPS` of the gyro's
+step or :data:`MIN_ANGLE_DEG`; the report's ``run.reference_alignment`` says what was found and
+whether it was applied. A reference that hardly turns tells neither: nothing is applied then.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ...io._timebase import place_nearest
+from ._common import fmt
+
+__all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG"]
+
+MAX_OFFSET_S = 0.1
+#: the reference's rates are taken over spans of at least this [s]
+SPAN_S = 0.02
+#: applied beyond this many standard errors (10 blocks scatter: a generous margin)
+Z_APPLY = 5.0
+N_BLOCKS = 10
+MIN_OFFSET_STEPS = 0.25
+MIN_ANGLE_DEG = 0.1
+#: the reference's rates must reach this multiple of the gyro's white noise (RMS) to tell anything
+MIN_MOTION = 20.0
+
+
+def _xyzw(q):
+    return np.column_stack([q[:, 1:], q[:, :1]])
+
+
+def _wxyz(q):
+    return np.column_stack([q[:, 3:], q[:, :3]])
+
+
+def _ref_rates(tq, q, span):
+    """Body rates over consecutive reference samples ``span`` apart (a motion-capture attitude
+    differenced sample by sample is mostly its own noise): (t mid, w), spans without a gap."""
+    d1 = np.diff(tq)
+    med = np.median(d1)
+    a, b = np.arange(len(tq) - span), np.arange(span, len(tq))
+    a, b = a[::span], b[::span]
+    d = tq[b] - tq[a]
+    ok = (d > 0) & (d <= (span + 0.5) * med)
+    a, b, d = a[ok], b[ok], d[ok]
+    r = Rotation.from_quat(_xyzw(q[a])).inv() * Rotation.from_quat(_xyzw(q[b]))
+    return 0.5 * (tq[a] + tq[b]), r.as_rotvec() / d[:, None]
+
+
+def _gyro_at(t_grid, w, t):
+    fin = np.isfinite(w).all(1)
+    tg, wg = t_grid[fin], w[fin]
+    out = np.column_stack([np.interp(t, tg, wg[:, c], left=np.nan, right=np.nan) for c in range(3)])
+    return out
+
+
+def _offset(t_grid, w, tm, wb, dt):
+    """Clock offset minimising the rate magnitudes' mismatch."""
+    nb = np.linalg.norm(wb, axis=1)
+    taus = np.arange(-MAX_OFFSET_S, MAX_OFFSET_S + 1e-12, dt / 4.0)
+
+    def cost(tau):
+        g = np.linalg.norm(_gyro_at(t_grid, w, tm - tau), axis=1)
+        m = np.isfinite(g)
+        return float(np.mean((g[m] - nb[m]) ** 2)) if m.sum() > 10 else np.inf
+
+    c = np.array([cost(x) for x in taus])
+    k = int(np.argmin(c))
+    if 0 < k < len(taus) - 1 and np.all(np.isfinite(c[k - 1 : k + 2])):
+        a, b, cc = c[k - 1], c[k], c[k + 1]
+        den = a - 2 * b + cc
+        shift = 0.5 * (a - cc) / den if den > 0 else 0.0
+        return float(taus[k] + np.clip(shift, -1, 1) * dt / 4.0)
+    return float(taus[k])
+
+
+def _rotation(wg, wb):
+    """R (3x3) and bias with wg = R wb + b, R the nearest rotation to the least-squares map."""
+    m = np.isfinite(wg).all(1)
+    X = np.column_stack([wb[m], np.ones(m.sum())])
+    coef, *_ = np.linalg.lstsq(X, wg[m], rcond=None)
+    M = coef[:3].T
+    U, _, Vt = np.linalg.svd(M)
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
+    return U @ D @ Vt
+
+
+def alignment_step(s):
+    """Estimate (and where significant, apply) the reference's clock offset and frame rotation.
+    Sets ``s.alignment`` (the report's ``run.reference_alignment``) and may replace the reference
+    in ``s.run`` (a copy: the caller's run is not changed)."""
+    run = s.run
+    s.alignment = None
+    tq, q = run.get("q_ref_t"), run.get("q_ref_q")
+    if tq is None:
+        rows = np.nonzero(np.isfinite(run["q_ref"][:, 0]))[0]
+        tq, q = run["t"][rows], run["q_ref"][rows]
+    if len(tq) < 10 * N_BLOCKS:
+        return
+    dt = s.dt
+    # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
+    span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
+    tm, wb = _ref_rates(tq, q, span)
+    noise = math.sqrt(max(s.noise_var_rate / dt, 1e-300))
+    if len(tm) < 10 * N_BLOCKS or float(np.sqrt(np.mean(wb**2))) < MIN_MOTION * noise / math.sqrt(max(len(tm), 1)) * 10:
+        return
+    if float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < 0.05:  # rad/s: a body that hardly turns
+        return
+    tau = _offset(run["t"], s.w, tm, wb, dt)
+    blocks = np.array_split(np.arange(len(tm)), N_BLOCKS)
+    taus = np.array([_offset(run["t"], s.w, tm[b], wb[b], dt) for b in blocks])
+    tau_se = float(np.std(taus, ddof=1) / math.sqrt(N_BLOCKS))
+    wg = _gyro_at(run["t"], s.w, tm - tau)
+    Rm = _rotation(wg, wb)
+    rv = Rotation.from_matrix(Rm).as_rotvec()
+    rvs = np.array([Rotation.from_matrix(_rotation(wg[b], wb[b])).as_rotvec() for b in blocks])
+    rv_se = np.std(rvs, axis=0, ddof=1) / math.sqrt(N_BLOCKS)
+    angle = float(np.linalg.norm(rv))
+    angle_se = float(np.sqrt(np.sum((rv / max(angle, 1e-300)) ** 2 * rv_se**2))) if angle > 0 else float(np.linalg.norm(rv_se))
+    z = 1.96
+    use_tau = abs(tau) > Z_APPLY * tau_se and abs(tau) > MIN_OFFSET_STEPS * dt
+    use_rot = angle > Z_APPLY * angle_se and math.degrees(angle) > MIN_ANGLE_DEG
+    s.alignment = {
+        "clock_offset_s": tau, "clock_offset_interval_s": [tau - z * tau_se, tau + z * tau_se],
+        "rotation_deg": math.degrees(angle),
+        "rotation_interval_deg": [math.degrees(max(angle - z * angle_se, 0.0)), math.degrees(angle + z * angle_se)],
+        "rotation_vector_rad": [float(v) for v in rv], "applied": {"clock_offset": bool(use_tau), "rotation": bool(use_rot)},
+        "what": "the reference's stamps late by clock_offset_s against the gyro's; gyro rate = R x reference body rate "
+                "(R a rotation of rotation_deg about rotation_vector_rad); intervals from "
+                f"{N_BLOCKS} time blocks",
+    }
+    if not (use_tau or use_rot):
+        return
+    tq2 = tq - tau if use_tau else tq
+    q2 = q
+    if use_rot:
+        q2 = _wxyz((Rotation.from_quat(_xyzw(q)) * Rotation.from_matrix(Rm.T)).as_quat())
+        q2 *= np.sign(q2[:, :1] + 1e-300)
+    valid = np.isfinite(s.w).all(1)
+    run = dict(run)
+    run["q_ref_t"], run["q_ref_q"] = tq2, q2
+    run["q_ref"] = place_nearest(run["t"], valid, tq2, q2, dt)
+    s.run = run
+    s.notes.append(
+        "reference aligned with the gyro before it was judged: "
+        + "; ".join(x for x in (
+            f"its clock offset {fmt(tau * 1e3)} ms [{fmt((tau - z * tau_se) * 1e3)}, {fmt((tau + z * tau_se) * 1e3)}]" if use_tau else "",
+            f"its frame turned by {fmt(math.degrees(angle))} deg [{fmt(math.degrees(max(angle - z * angle_se, 0)))}, "
+            f"{fmt(math.degrees(angle + z * angle_se))}] into the gyro's" if use_rot else "") if x))
