@@ -169,10 +169,12 @@ def _substitute(cmd: str, tmp: Path) -> list[str]:
             _vehicle_inputs(tmp)
             if a == "run.mf4" and not (tmp / "run.mf4").exists():
                 pytest.skip("asammdf is not installed")
-        elif a == "flight.csv" and argv[1] == "diagnose":  # made by the guide's export command before it
+        elif a == "flight.csv" and "diagnose" in argv:  # made by the guide's export command before it
             shutil.copy(ROOT / "tests" / "data" / "ulog" / "sample.ulg", tmp / "flight.ulg")
             subprocess.run([sys.executable, "-m", "jaxdrift", "-q", "topics", "flight.ulg", "--export-csv", a],
                            cwd=tmp, check=True, capture_output=True)
+        elif a == "report.json" and "durability" in argv and not (tmp / a).exists():
+            shutil.copy(ROOT / "examples" / "vehicle_report.json", tmp / a)  # the guide's diagnose line writes it
         elif a.startswith("examples/"):
             a = str(ROOT / a)
         elif a == "site":
