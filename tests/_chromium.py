@@ -29,6 +29,11 @@ def chromium_path() -> str | None:
     return None
 
 
+
+def _read(path: str) -> str:
+    with open(path) as fh:
+        return fh.read()
+
 class Browser:
     def __init__(self, width: int = 1280, height: int = 1000, timeout: float = 30.0):
         import websocket
@@ -42,15 +47,16 @@ class Browser:
                                      stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         port_file = os.path.join(self.profile, "DevToolsActivePort")
         deadline = time.monotonic() + timeout
-        while not (os.path.exists(port_file) and open(port_file).read().strip()):
+        while not (os.path.exists(port_file) and _read(port_file).strip()):
             if time.monotonic() > deadline or self.proc.poll() is not None:
                 self.close()
                 raise RuntimeError("chromium did not start")
             time.sleep(0.05)
-        port = int(open(port_file).read().split()[0])
+        port = int(_read(port_file).split()[0])
         while True:
             try:
-                targets = json.load(urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=5))
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json/list", timeout=5) as r:
+                    targets = json.load(r)
                 page = next(t for t in targets if t.get("type") == "page")
                 break
             except Exception:  # noqa: BLE001 - the target appears a moment after the port

@@ -3,7 +3,7 @@
 Layers (a module may import only the layers listed for its own; ``errors`` is open to all):
 
     solvers   <- ensemble <- analysis <- diagnosis <- studies <- durability <- campaign <- cli
-    models    <-------------'            io ---'
+    models    <-------------'            io ---'          report (pages and summaries) <-'
     io (numpy only)
 
 Rules: no import cycle between modules; no module over 650 lines; no function over 150 lines;
@@ -37,7 +37,11 @@ ALLOWED = {
     "durability": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies"},
     # campaigns run the diagnosis and the durability of many runs on Dask: between durability and cli
     "campaign": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability"},
-    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability", "campaign"},
+    # the pages and terminal summaries of reports: read a report's JSON, plot (the vehicle preview
+    # re-simulates through the diagnosis); only the command line uses them
+    "report": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis"},
+    "cli": {"models", "analysis", "solvers", "ensemble", "io", "diagnosis", "studies", "durability", "campaign",
+            "report"},
 }
 # third-party packages a layer must not import
 FORBIDDEN_THIRD_PARTY = {
@@ -235,6 +239,8 @@ MUTATION_ALLOWED = {
     "diagnosis.attitude._pipeline": "AttitudeState, filled by the pipeline's steps",
     "diagnosis.attitude._array": "AttitudeState, filled by the pipeline's steps",
     "diagnosis.attitude._realworld": "AttitudeState, filled by the pipeline's steps",
+    "diagnosis.attitude._vibration": "AttitudeState, filled by the pipeline's steps",
+    "diagnosis.attitude._alignment": "AttitudeState, filled by the pipeline's steps",
     # process-wide hooks, set once by the command line or the package itself
     "cli._common": "warnings.showwarning and the interrupt handler: the command line's process hooks",
     "campaign": "the package module's class (a callable package)",

@@ -81,7 +81,8 @@ def vehicle(tmp_path_factory):
     from jaxdrift.cli import main
 
     d = tmp_path_factory.mktemp("vehicle")
-    rows = list(csv.reader(open(ROOT / "examples" / "vehicle_run.csv")))
+    with open(ROOT / "examples" / "vehicle_run.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
     rows[0] = [SCRIPT if c == "f1" else c for c in rows[0]] + [XSS]
     for r in rows[1:]:
         r.append("1.0")

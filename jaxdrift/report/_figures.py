@@ -38,7 +38,6 @@ def figure(nrows=1, ncols=1, height=2.6, width=8.5, **kw):
     plt = _plt()
     with plt.rc_context(_rc()):
         fig, axes = plt.subplots(nrows, ncols, figsize=(width, height * nrows), squeeze=False, **kw)
-    fig._jaxdrift_rc = _rc()
     return fig, axes
 
 
@@ -46,7 +45,7 @@ def svg(fig, alt: str = "") -> str:
     """The figure as an inline ``<svg>`` element (XML prolog and DOCTYPE removed)."""
     plt = _plt()
     buf = io.StringIO()
-    with plt.rc_context(getattr(fig, "_jaxdrift_rc", _rc())):
+    with plt.rc_context(_rc()):
         fig.tight_layout()
         fig.savefig(buf, format="svg")
     plt.close(fig)
