@@ -184,7 +184,7 @@ def _text_rounding(path, info, cols) -> float:
     (The reader's own steps count an exact "0" cell, as a noise-free static start writes, as a step
     of 1: on such a file they made the gyro's rounding floor 0.19 rad/s and hid a 7.9e-4 rad/s bias.)"""
     if not cols or info.get("format") != "csv":
-        return _rounding_rms(info, cols)
+        return _rounding_rms(info, cols) or _value_step_rms(info, cols)
     with open(path, errors="replace") as fh:
         head = fh.readline()
         body = fh.readlines(64 << 20)
@@ -193,6 +193,14 @@ def _text_rounding(path, info, cols) -> float:
         return _rounding_rms(info, cols)
     sample = body[:: max(1, len(body) // 5000)]
     return _written_rounding_rms(sample, [names.index(c) for c in cols])
+
+
+def _value_step_rms(info, columns) -> float:
+    """RMS rounding error of channels recorded in steps (a CAN signal's resolution: its values,
+    resampled or not, carry that rounding), from the time base's ``value_step`` per channel."""
+    ch = (info.get("time_base") or {}).get("channels") or {}
+    q = [ch.get(c, {}).get("value_step", 0.0) for c in columns]
+    return float(math.sqrt(sum(x * x for x in q) / len(q) / 12.0)) if any(q) else 0.0
 
 
 def _rounding_rms(info, columns) -> float:

@@ -91,6 +91,10 @@ def _known(kind: str, name: str) -> bool:
     return name in req or name in opt or (kind == "attitude" and bool(_ACC.match(name)))
 
 
+#: more unused columns than this are summarised in one warning
+MAX_UNUSED_LISTED = 5
+
+
 def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
     """Check the (mapped) header. Returns (warnings, close-name problems)."""
     req, opt = KINDS[kind]
@@ -110,7 +114,7 @@ def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
             did = f"; did you mean {hint[0]!r}? (names are case-sensitive; or --map {r}={hint[0]})" if hint else ""
             raise InputError(f"{fname}, line 1: missing required column {r!r}{did} "
                              f"(found: {', '.join(header)}; required: {', '.join(req)})")
-    warnings, close = [], []
+    warnings, close, unused = [], [], []
     known = list(req) + list(opt)
     for h in extras:
         hint = difflib.get_close_matches(h, known, n=1, cutoff=0.75)
@@ -118,9 +122,15 @@ def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
         if hint and hint[0] not in seen:
             close.append(f"{fname}, line 1: unknown column {h!r}: did you mean `{hint[0]}`? "
                          f"(rename it, or --map {hint[0]}={h})")
+        elif hint:
+            warnings.append(f"{fname}: column {h!r} is not used and was ignored (did you mean {hint[0]!r}?)")
         else:
-            did = f" (did you mean {hint[0]!r}?)" if hint else ""
-            warnings.append(f"{fname}: column {h!r} is not used and was ignored{did}")
+            unused.append(h)
+    if len(unused) > MAX_UNUSED_LISTED:  # a logger's file holds dozens of channels: one line for them
+        warnings.append(f"{fname}: {len(unused)} columns are not used and were ignored: "
+                        f"{', '.join(repr(h) for h in unused[:MAX_UNUSED_LISTED])}, ...")
+    else:
+        warnings += [f"{fname}: column {h!r} is not used and was ignored" for h in unused]
     return warnings, close
 
 

@@ -148,6 +148,22 @@ def _gaps(streams: dict, stats: dict) -> list[dict]:
             for (a, b), ch in sorted(gaps.items())]
 
 
+def value_step(v: np.ndarray) -> float:
+    """The step a channel's recorded values are written in (a CAN signal's resolution, an ADC's
+    LSB): the smallest difference between its distinct values where at least 99 % of the values
+    are whole multiples of it (to 1e-3 of a step), else 0 (no common step: float data)."""
+    v = np.asarray(v, np.float64)
+    v = v[np.isfinite(v)]
+    u = np.unique(v)
+    if len(u) < 3:
+        return 0.0
+    q = float(np.min(np.diff(u)))
+    if not q > 0 or q < 1e-9 * float(np.max(np.abs(u))):
+        return 0.0
+    r = v / q
+    return q if np.mean(np.abs(r - np.rint(r)) < 1e-3) >= 0.99 else 0.0
+
+
 def _bridged(streams: dict, stats: dict) -> dict:
     """What was bridged, per channel: the count of steps, the samples they miss, the longest, and
     the first few (a log that drops a sample now and then drops hundreds)."""
@@ -209,7 +225,8 @@ def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
           "noise_variance_factor": float(np.mean((1 - fa) ** 2 + fa ** 2)) if fa.size else 1.0,
           "channels": {name: {"fs": s["fs"], "samples": int(len(streams[name][0])),
                               "jitter_std_rel": s["jitter_std_rel"], "jitter_max_rel": s["jitter_max_rel"],
-                              "gaps": int(len(s["gap_steps"])), "bridged": int(len(s["bridged_steps"]))}
+                              "gaps": int(len(s["gap_steps"])), "bridged": int(len(s["bridged_steps"])),
+                              "value_step": value_step(streams[name][1])}
                        for name, s in stats.items()}}
     if fs:
         tb["primary_fs"] = st_p["fs"]

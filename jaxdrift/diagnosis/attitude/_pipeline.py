@@ -24,7 +24,6 @@ Each step reads and writes named fields of the state; the report is assembled fr
 from __future__ import annotations
 
 import math
-import sys
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -170,8 +169,6 @@ def diagnose_attitude(run, positions=None):
 def _diagnose_state(run, positions=None):
     """The pipeline on one sensor's run: the filled state."""
     s = AttitudeState(run=run, positions=positions)
-    if run.get("extra_columns"):
-        print(f"jaxdrift diagnose: warning: ignoring column(s) {', '.join(run['extra_columns'])}", file=sys.stderr)
     gyro_noise_step(s)
     vibration_step(s)
     q_ref = run["q_ref"]
@@ -371,7 +368,17 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
     # wanders within its segments, the discretisation); the tests keep the model covariance
     G = int(np.clip(n_int // 10, 1, 16))
     cov_rob = cluster_cov(fit, (np.arange(n_int) * G) // n_int)
-    var_int = np.maximum(np.diag(cov), np.diag(cov_rob))
+    # residuals coloured by vibration, or correlated from one interval to the next (a noisy
+    # reference: its error enters two neighbouring intervals with opposite signs, and a constant
+    # bias sees only their telescoping sum): the block sandwich is the standard error, with the
+    # t quantile of its G - 1 degrees of freedom, for the intervals and the tests alike
+    coloured = G >= 8 and (s.vibration is not None or _correlated_scores(fit))
+    if coloured:
+        var_int = np.diag(cov_rob) * (stats.t.ppf(0.975, G - 1) / stats.norm.ppf(0.975)) ** 2
+        s.notes.append(f"the reference residuals are correlated from interval to interval: bias and scale "
+                       f"intervals from {G} blocks of intervals (cluster-robust, t with {G - 1} degrees of freedom)")
+    else:
+        var_int = np.maximum(np.diag(cov), np.diag(cov_rob))
     # the integration's share (:func:`half_rate_fit`): a third of the change at twice the step, as a
     # standard error in quadrature (parameters: the first bias segment and the scale of each channel)
     fh = fit["half_rate"]
@@ -404,7 +411,7 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         elif not 0.5 < s_hat < 2.0:
             not_determined(s, GYRO_SCALE.name, ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
                            "the gyro disagree in a way no scale explains" + why_lost)
-        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl, s.vibration is not None) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
+        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
             s.scale[c] = s_hat
             s.findings.append(GYRO_SCALE.finding(
                 float(s_hat), [float(s_hat - s_half), float(s_hat + s_half)],
@@ -439,7 +446,7 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             s.corrections[ch] = replace(s.corrections[ch], bias_drift=float(d["K"]))
         s.bias_se[c] = b0_half / z95
         s.bias_fit[ch] = (float(b0), float(b0_half))
-        if abs(b0) / _test_se(b0_se, b0_half / z95, infl, s.vibration is not None) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
+        if abs(b0) / _test_se(b0_se, b0_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
             s.corrections[ch] = replace(s.corrections[ch], bias=float(b0))
             if c not in drift:
                 s.bias_path[:, c] = b0
@@ -454,9 +461,27 @@ def _test_se(se_model, se_interval, infl, coloured=False):
     """The standard error a finding is tested with: the model's (residual-inflated) one; where the
     residuals between reference rows are more than twice the white-noise level in variance (a real
     reference, with its own errors and a gyro filtered before logging: the white model is evidently
-    wrong) or coloured by vibration (``coloured``), the interval's one (cluster-robust,
-    integration) when larger."""
-    return max(se_model, se_interval) if infl > 2.0 or coloured else se_model
+    wrong), the interval's one (cluster-robust, integration) when larger; where they are coloured
+    (``coloured``: vibration, or correlated between neighbouring intervals), the interval's one."""
+    if coloured:
+        return se_interval
+    return max(se_model, se_interval) if infl > 2.0 else se_model
+
+
+def _correlated_scores(fit, z=4.0):
+    """True where the scores of a bias parameter are autocorrelated at lag one beyond ``z``
+    standard errors (1/sqrt(n) under independence) over the intervals the fit used."""
+    S = np.asarray(fit["scores"])
+    for c in range(3):
+        x = S[:, fit["offs"][c]]
+        x = x[x != 0.0]
+        if len(x) < 30:
+            continue
+        x = x - x.mean()
+        den = float(np.dot(x, x))
+        if den > 0 and abs(float(np.dot(x[1:], x[:-1])) / den) > z / np.sqrt(len(x)):
+            return True
+    return False
 
 
 def _degenerate_reason(fit, i):
@@ -541,7 +566,10 @@ def static_segment_step(s):
     if s.n_ref == 1:
         s.notes.append("one reference row only: used as the initial attitude, no bias information")
     s.not_observed.append("attitude departure (no reference attitude over more than one row)")
-    st = static_segment(w, dt, wn["sigma"] if s.noise_found else np.zeros(3))
+    # a gyro recorded in coarse steps toggles between them while standing still: its rounding
+    # (a third of a step squared, the variance of a toggle) is the least spread a still window has
+    sigma = np.maximum(wn["sigma"] if s.noise_found else np.zeros(3), math.sqrt(3.0) * s.run["quantisation"])
+    st = static_segment(w, dt, sigma)
     if st is None:
         return
     s.bias_source = "static"
