@@ -368,36 +368,37 @@ def diagnose_timing(root: Path) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# real flight-controller logs (benchmarks/validation/real_logs.py)
+# the real-data corpus (benchmarks/validation/real_corpus.py)
 # ---------------------------------------------------------------------------------------------
-@block("real-logs-table", "docs/validation/real_logs.json")
-def real_logs_table(root: Path) -> str:
-    """One row per log of ``docs/validation/real_logs.json`` (``benchmarks/validation/real_logs.py``)."""
-    r = load(root, "docs/validation/real_logs.json")
+def _corpus_table(r) -> str:
     g = _g
-    rows = ["| log | hardware (`ver_hw`) | gyro / attitude time base | independent bias (SE) | clear | jaxdrift findings "
-            "| attitude error before -> after [rad] |", "|---|---|---|---|---|---|---|"]
+    rows = ["| recording | device | format | length [s] | independent bias x, y, z [mrad/s] (SE) | clear | named "
+            "| jaxdrift's gyro noise [rad/sqrt(s)] | other findings | exit |", "|---|---|---|---|---|---|---|---|---|---|"]
+    named = clear = 0
     for L in r["logs"]:
-        i, gy, at = L["independent"], L["gyro"], L["attitude"]
-        tb = (f"{gy['rate_hz']:.0f} Hz, jitter {100 * gy['jitter_std']:.1f} % (std), {gy['gaps']} gaps up to "
-              f"{1000 * gy['longest_gap_s']:.0f} ms / {at['rate_hz']:.0f} Hz")
-        ind = ", ".join(f"{g(b)} ({g(s)})" for b, s in zip(i["bias"], i["se"]))
-        clear = " ".join(a for a, c in zip("xyz", i["clear"]) if c) or "none"
-        fs = []
-        for f in L["findings"]:
-            if f["cause"] == "reference_inconsistent":
-                fs.append(f"`reference_inconsistent` {f['axis']} {g(f['span_s'][0])}-{g(f['span_s'][1])} s ({g(f['estimate'])} rad/s)")
-            elif f["cause"] == "gyro_noise":
-                fs.append(f"`gyro_noise` {g(f['estimate'])} ({f['estimate_kind']})")
-            else:
-                fs.append(f"`{f['cause']}` {f['channel']} {g(f['estimate'])} [{g(f['interval'][0])}, {g(f['interval'][1])}]")
-        nd = ", ".join(f"{d['cause'].replace('gyro_', '')} {d['channel']}" for d in L["not_determined"])
-        if nd:
-            fs.append("not determined: " + nd)
-        e, gn = L["attitude_error_rms"], L["report_gain"]
-        rows.append(f"| {L['log']} ({gy['duration_s']:.1f} s) | {L['hardware']} | {tb} | {ind} | {clear} | {'; '.join(fs)} "
-                    f"| {g(e['before'])} -> {g(e['after'])} (report: {g(gn['before'])} -> {g(gn['after'])}) |")
+        ind, j = L.get("independent") or {}, L.get("jaxdrift") or {}
+        ch = j.get("checks") or {}
+        if not ind or not ch.get("ran"):
+            rows.append(f"| {Path(L['file']).name} | {L['device']} | {L['format']} | | missing | | | | | |")
+            continue
+        b = ", ".join(f"{1e3 * x:+.2f} ({1e3 * s:.2f})" for x, s in zip(ind["bias"], ind["se"]))
+        cl = " ".join(a for a, c in zip("xyz", ind["clear"]) if c) or "none"
+        named += ch["clear_named"]
+        clear += ch["clear"]
+        gn = ch.get("gyro_noise") or {}
+        noise = f"{g(gn['estimate'])} ({gn['kind'].replace('_', ' ')})" if gn else "none"
+        others = sorted({c for c in ch.get("causes", []) if c not in ("gyro_noise", "gyro_bias")})
+        dur = L.get("gyro", {}).get("duration_s") if isinstance(L.get("gyro"), dict) else None
+        rows.append(f"| {Path(L['file']).name} | {L['device']} | {L['format']} | {g(dur) if dur else ''} | {b} | {cl} "
+                    f"| {ch['clear_named']}/{ch['clear']} | {noise} | {', '.join(others) or '-'} | {j.get('exit')} |")
+    rows.append(f"| **all** | | | | | | **{named}/{clear}** | | | |")
     return "\n".join(rows)
+
+
+@block("real-corpus-table", "docs/validation/real_corpus.json")
+def real_corpus_table(root: Path) -> str:
+    """One row per recording of ``docs/validation/real_corpus.json`` (``benchmarks/validation/real_corpus.py``)."""
+    return _corpus_table(load(root, "docs/validation/real_corpus.json"))
 
 
 # ---------------------------------------------------------------------------------------------
