@@ -118,10 +118,29 @@ def test_small_force_noise_is_reported_at_1000_hz(tmp_path, seed, level):
 
 
 def test_noise_free_500_hz_rough_run_reports_no_noise(tmp_path):
-    """The same rule on a run without force noise (500 Hz, road E, 6 digits): no noise finding,
-    the offset alone. (The low band reads 0.13 N here, from the rounding of the motion written
-    with 6 digits: the rule asks for 8.)"""
+    """The same rule on a run without force noise (500 Hz, road E, 6 digits): no noise level, the
+    offset alone, and the noise stated as an upper bound [0, b] (issue 35: never silence) with b
+    under 1 N. (The low band reads 0.13 N here, from the rounding of the motion written with 6
+    digits: the rule asks for 8.)"""
     over = dict(SMALL_NOISE, fs=500.0, road_class="E", speed=9.0, precision=6)
     rep, _ = _diagnose(tmp_path, 5163, **over,
                        effects=[{"cause": "force_offset", "channel": "f1", "value": 20.0}])
-    assert [f["cause"] for f in rep["findings"]] == ["force_offset"], rep["findings"]
+    assert [f["cause"] for f in rep["findings"]] == ["force_offset", "force_noise"], rep["findings"]
+    bound = rep["findings"][1]
+    assert bound["estimate_kind"] == "upper_bound" and bound["interval"][0] == 0.0
+    assert bound["estimate"] <= bound["interval"][1] < 1.0, bound
+
+
+@pytest.mark.parametrize("seed,level,fs,road", [(5171, 0.7, 500.0, "C"), (5172, 1.5, 250.0, "D"), (5173, 4.0, 500.0, "B")])
+def test_effect_free_run_always_states_its_noise(tmp_path, seed, level, fs, road):
+    """Issue 35: an effect-free run with 0.7-4 N of force noise says something about it: a level
+    whose interval holds the truth, or an upper bound [0, b] with b at least the truth."""
+    over = dict(road_class=road, speed=15.0, fs=fs, duration=10.0, channel_set="all",
+                channels=["beta", "z3", "s1", "s2"], precision=8, motion_noise={})
+    rep, _ = _diagnose(tmp_path, seed, **over, effects=[{"cause": "force_noise", "value": level}])
+    noise = [f for f in rep["findings"] if f["cause"] == "force_noise"]
+    assert noise, rep["findings"]
+    lo, hi = noise[0]["interval"]
+    assert lo <= level <= hi, noise[0]
+    if noise[0]["estimate_kind"] == "upper_bound":
+        assert lo == 0.0

@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import InputError
 from ._model import DEFAULT_MODEL, DEFAULT_MODEL_LABEL
 from ._options import parse_map, parse_units, quantity_of, UNITS
+from ._faults import SOUND_MIN_SHARE, find_faults, sound_part
 from ._plausible import plausibility_problems
 from ._logs import LOG_FORMATS
 from ._runs_time import REFERENCE_COLUMNS, _reference, apply_policy
@@ -335,6 +336,8 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
         more = "\n  ".join(problems)
         raise InputError(f"{more}\n  (nothing computed; if the file is right, --force goes on anyway)")
     warnings += [f"{p} (--force: going on)" for p in problems]
+    if kind != "attitude" and checks:
+        t, data, refs, tb = _logger_faults(fname, t, data, refs, tb, notes)
     info = {"format": cols.fmt, "kind": kind, "columns": {c: file_of[c] for c in used},
             "units_converted": converted, "rate_hz": 1.0 / float((t[-1] - t[0]) / (len(t) - 1)),
             "notes": notes, "forced": bool(problems),
@@ -347,6 +350,31 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     cls = AttitudeRun if kind == "attitude" else VehicleRun
     return cls(path=str(path), t=t, channels=data, warnings=tuple(warnings), info=info, time_base=tb,
                references=refs)
+
+
+def _logger_faults(fname, t, data, refs, tb, notes):
+    """A force channel that goes dead, sticks or clips for part of the run (:mod:`._faults`): the
+    run is cut to its longest sound stretch, the faults named in ``time_base["logger_faults"]``;
+    refused where the sound stretch is too short to analyse."""
+    n = len(t)
+    # a channel constant over the whole run is the plausibility check's (which --force overrides)
+    faults = [f for f in find_faults(t, data, [c for c in ("f1", "f2") if c in data]) if f["rows"] != [0, n]]
+    if not faults:
+        return t, data, refs, tb
+    i0, i1 = sound_part(n, faults)
+    said = "; ".join(f["evidence"] for f in faults)
+    if i1 - i0 < max(MIN_SAMPLES, SOUND_MIN_SHARE * n):
+        raise InputError(f"{fname}: {said}; no stretch free of logger faults is long enough to analyse "
+                         f"({i1 - i0} of {n} samples)")
+    tb = dict(tb)
+    tb["logger_faults"] = [{k: v for k, v in f.items() if k != "rows"} for f in faults]
+    tb["sound_part_s"] = [float(t[i0]), float(t[i1 - 1])]
+    notes.append(f"{fname}: logger fault(s) found before any cause was fitted: {said}; the run is analysed on "
+                 f"t = {t[i0]:.6g} .. {t[i1 - 1]:.6g} s ({i1 - i0} of {n} samples), free of them")
+    t_cut = t[i0:i1]
+    refs = {c: (tr[(tr >= t_cut[0]) & (tr <= t_cut[-1])], v[(tr >= t_cut[0]) & (tr <= t_cut[-1])])
+            for c, (tr, v) in refs.items()}
+    return t_cut, {c: v[i0:i1] for c, v in data.items()}, refs, tb
 
 
 def _convert_units(fname, used, factors, cols, file_of, data, notes) -> dict:

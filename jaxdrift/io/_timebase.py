@@ -262,6 +262,6 @@ def run_block(tb: dict | None) -> dict | None:
     if not tb:
         return None
     keys = ("fs", "nominal_dt", "jitter_std_rel", "jitter_max_rel", "gap_factor", "gaps", "bridge_samples",
-            "bridged", "segments",
+            "bridged", "logger_faults", "sound_part_s", "segments",
             "analysed_segment", "resampled", "method", "filtered", "noise_variance_factor")
     return {k: tb[k] for k in keys if k in tb}

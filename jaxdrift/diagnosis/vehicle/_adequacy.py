@@ -194,7 +194,8 @@ def assess_model_form(prob, p_ext: dict, corr_ext: dict, res1, dynamic: bool) ->
     if not dynamic or not names:
         notes.append("Could not show: damper_asymmetry, progressive_spring, bump_stop (no pitch, heave or "
                      "spring travel measured; spring travel s1/s2 would show them).")
-        return {"findings": findings, "notes": notes, "correction": correction, "extra": None}
+        return {"findings": findings, "notes": notes, "correction": correction, "extra": None,
+                "unseen": [(n, a) for n in ("damper_asymmetry", "progressive_spring", "bump_stop") for a in (0, 1)]}
     st = model_states(prob.pipe, p_ext, corr_ext)
     terms = catalogue()
     tests = _tests(prob, p_ext, st, res1, terms)
@@ -202,8 +203,9 @@ def assess_model_form(prob, p_ext: dict, corr_ext: dict, res1, dynamic: bool) ->
     m = len(tests) * len(terms)
     named, extra = _named(prob, st, terms, tests, scales, m, correction)
     findings += named
-    notes += _could_not_show(prob, st, terms, tests, scales, m)
-    return {"findings": findings, "notes": notes, "correction": correction, "extra": extra}
+    lines, unseen = _could_not_show(prob, st, terms, tests, scales, m)
+    notes += lines
+    return {"findings": findings, "notes": notes, "correction": correction, "extra": extra, "unseen": unseen}
 
 
 def _significant(terms, tests, scales, m, skip=()):
@@ -434,11 +436,12 @@ def detection_limit(j, tests, scales, m) -> float:
     return best
 
 
-def _could_not_show(prob, st, terms, tests, scales, m) -> list[str]:
+def _could_not_show(prob, st, terms, tests, scales, m) -> tuple[list[str], list[tuple[str, int]]]:
     """Catalogue causes the run could not show at the sizes engineers meet: at none of them (the
-    largest would not pass) or only above a size within that range (the detection limit)."""
+    largest would not pass) or only above a size within that range (the detection limit). Returns
+    the notes and the (cause name, axle) pairs the run is blind to at typical sizes."""
     pipe = prob.pipe
-    blind, partly = [], []
+    blind, partly, unseen = [], [], []
     for j, c in enumerate(terms):
         if isinstance(c, StateTerm) or (isinstance(c, BumpStop) and c.q != 0.97):
             continue
@@ -447,6 +450,7 @@ def _could_not_show(prob, st, terms, tests, scales, m) -> list[str]:
         where = f"spring travel s{i}" if not pipe.has_s[c.axle] else f"a less noisy spring travel s{i}"
         if lim > c.typical(st):
             blind.append(f"{c.name}[{c.target}] ({where} would show it)")
+            unseen.append((c.name, c.axle))
         elif lim > c.smallest(st):
             partly.append(f"{c.name}[{c.target}] smaller than {c.size_words(lim, st)} ({where} would show it)")
     out = []
@@ -459,4 +463,4 @@ def _could_not_show(prob, st, terms, tests, scales, m) -> list[str]:
     if partly:
         out.append("Could not show: " + "; ".join(partly) + ". Smaller ones, still within the sizes engineers "
                    "meet, would not pass the adequacy test in this run (its detection limit).")
-    return out
+    return out, unseen

@@ -7,12 +7,13 @@ from ...io._timebase import run_block
 from ._adequacy import assess_model_form
 from ...io._corrections import NO_CORRECTION
 from ._causes import FORCE_NOISE, _apply
+from ._detectors import NOISE_MIN_N
 from ._confirm import confirm_by_resimulation, confirm_corrections, unconfirmed_findings
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
 from ._problem import _Problem
 from .._intervals import joint_intervals
-from ._report import (SCHEMA, cause_findings, enforced_terms, identifiability_notes, noise_level,
+from ._report import (NOISE_CONFIRMED_MIN_N, SCHEMA, cause_findings, enforced_terms, identifiability_notes, noise_level,
                       residual_gain, static_findings)
 from ._residuals import ResidualPipeline
 from ._select import _select
@@ -115,11 +116,24 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     if not dynamic and sigma > 0:
         static, corrections = static_findings(res0, sigma, corrections)
         findings += static
+    src = noise["source"]
     if noise["found"]:
-        src = noise["source"]
         findings.append(FORCE_NOISE.finding(sigma, noise["lo"], noise["hi"], noise["kind"],
                                             src[0].upper() + src[1:] + "."))
+    elif sigma >= NOISE_CONFIRMED_MIN_N:
+        # too small to report as a level, above the comparison's own floor: never silence, a bound
+        b = noise["bound"]
+        findings.append(FORCE_NOISE.finding(sigma, 0.0, b, "upper_bound", (
+            f"Too small to measure, at most {b:.3g} N: {src} (below the {NOISE_MIN_N:g} N a level is "
+            f"reported at); the bound is the upper end of that level's 95 % interval.")))
     findings = form["findings"] + findings
+    _stand_ins(findings, form.get("unseen") or [])
+    # logger faults (found by the reader before anything was fitted; the run is their sound part)
+    # lead the list: every other finding holds for the sound part only
+    faults = (getattr(run, "time_base", None) or {}).get("logger_faults") or []
+    findings = [{"cause": "channel_fault", "channel": f["channel"], "kind": f["kind"], "span_s": f["span_s"],
+                 "estimate": float(f["span_s"][1] - f["span_s"][0]), "unit": "s", "interval": None,
+                 "evidence": f["evidence"] + "; the run is analysed without it"} for f in faults] + findings
     joint_intervals(findings)
     if not findings:
         findings.append({"cause": "none", "evidence": (
@@ -153,3 +167,26 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, sims,
                             sigma, report)
     return report
+
+
+#: the linear parameter a nonlinear suspension cause of each axle looks like (front: the k3/d3
+#: spring and damper over s1; rear: k4/d4): a stop or a progressive spring a stiffer spring, an
+#: asymmetric damper a damper rate
+_STANDS_IN = {("bump_stop", 0): "k3", ("progressive_spring", 0): "k3", ("damper_asymmetry", 0): "d3",
+              ("bump_stop", 1): "k4", ("progressive_spring", 1): "k4", ("damper_asymmetry", 1): "d4"}
+
+
+def _stand_ins(findings, unseen):
+    """A linear parameter of an axle whose nonlinear suspension causes the run could not show may
+    stand in for one of them (a stop or a progressive spring reads as a stiffer spring, an
+    asymmetric damper as a damper rate): the finding says so (``may_stand_in_for``), not only the
+    notes. Sets the key on the findings of this report (new dicts made here)."""
+    for i, f in enumerate(findings):
+        if f.get("cause") != "parameter_error":
+            continue
+        names = sorted({n for n, axle in unseen if _STANDS_IN.get((n, axle)) == f.get("parameter")})
+        if names:
+            findings[i] = {**f, "may_stand_in_for": names, "evidence": f["evidence"] + (
+                f" It may stand in for a {' or '.join(names)} on this axle, which the run could not show "
+                f"(no spring travel measured, or too noisy): a linear change of the parameter is what such a "
+                f"cause looks like without one.")}

@@ -226,8 +226,11 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
         lo = 0.0
     elif lo > 0.0:
         lo = max(sigma - math.hypot(sigma - lo, m), 0.0)
+    # a level too small to report still bounds the noise: the upper end of its interval (the band
+    # holds the noise and whatever else the comparison leaves there)
+    bound = max(hi, sigma)
     return {"sigma": sigma, "lo": lo, "hi": hi, "found": found, "source": src,
-            "notes": notes, "kind": kind}
+            "notes": notes, "kind": kind, "bound": bound}
 
 
 def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma: float,
