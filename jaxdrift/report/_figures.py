@@ -72,17 +72,23 @@ def _plain_log(ax, axis: str = "y") -> None:
     a.set_minor_formatter(NullFormatter())
 
 
+#: line colours of the events a log names (others: purple)
+_EVENT_C = {"gyro_switch": "#c0392b", "estimator_switch": "#e67e22", "attitude_reset": "#2c3e50"}
+
+
 def _markers(ax, markers, t0=0.0):
-    spans = lines = False
+    spans = False
+    labelled = set()
     for m in markers or []:
         if "t_end" in m and m["t_end"] > m["t"]:
             ax.axvspan(m["t"] - t0, m["t_end"] - t0, color="#f39c12", alpha=0.25, lw=0,
                        label=None if spans else "gap (no data)")
             spans = True
         else:
-            ax.axvline(m["t"] - t0, color="#8e44ad", lw=0.8, ls="--",
-                       label=None if lines else str(m.get("label", "marker")))
-            lines = True
+            label = str(m.get("label", "marker"))
+            ax.axvline(m["t"] - t0, color=_EVENT_C.get(m.get("kind"), "#8e44ad"), lw=0.8, ls="--",
+                       label=None if label in labelled else label)
+            labelled.add(label)
 
 
 def time_figure(panels, markers=(), title: str = "", clip_to: str | None = None, t0: float = 0.0,

@@ -44,10 +44,12 @@ def num(v, digits: int = 5) -> str:
 def finding_label(f: dict) -> str:
     """``cause[parameter or channel]`` as the CLI and the summary name a finding."""
     cause = str(f.get("cause", "?"))
+    part = f.get("part")
+    tail = f" (part {part['index']})" if isinstance(part, dict) and "index" in part else ""
     for k in ("parameter", "channel", "axis", "sensor", "instance"):
         if f.get(k) not in (None, ""):
-            return f"{cause}[{f[k]}]"
-    return cause
+            return f"{cause}[{f[k]}]{tail}"
+    return cause + tail
 
 
 def interval_text(f: dict) -> str:
@@ -283,7 +285,13 @@ def _traces(report: dict) -> dict:
 
 
 def _markers(report: dict) -> list:
-    return ((report.get("series_preview") or {}).get("markers")) or []
+    """Gaps and segment starts (series_preview), and what a log names on the time axis: gyro and
+    estimator switches, attitude resets (run.events, the first 50)."""
+    marks = list(((report.get("series_preview") or {}).get("markers")) or [])
+    events = ((report.get("run") or {}).get("events")) or []
+    marks += [{"t": float(e["t"]), "label": str(e.get("kind", "event")).replace("_", " "), "kind": e.get("kind")}
+              for e in events[:50] if isinstance(e, dict) and isinstance(e.get("t"), (int, float))]
+    return marks
 
 
 def _t0(report: dict) -> float:
@@ -394,7 +402,8 @@ def attitude_page(r: dict, title: str) -> str:
     if panels:
         sig.append(fig(F.time_figure(panels, mk, "Gyro against the reference attitude's rate", t0=t0, height=2.0),
                        "Black: the gyro as logged; green: the rate of the reference attitude (differences of its "
-                       "quaternions). Shaded: gaps; dashed: segment starts."))
+                       "quaternions). Shaded: gaps; dashed: segment starts, and where the log says the primary gyro or "
+                       "estimator switched or the attitude was reset."))
     p = group_panel(r, "attitude_error", "attitude error [deg]")
     if p:
         sig.append(fig(F.time_figure([p], mk, "Attitude error: gyro-integrated against the reference", t0=t0),

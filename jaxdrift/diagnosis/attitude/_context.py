@@ -159,6 +159,7 @@ def merge_parts(done, run, dropped):
     })
     report.pop("onboard_bias", None)
     report["run"] = {**base["run"], "rows": int(len(run["t"])), "duration_s": float(run["t"][-1] - run["t"][0]),
+                     "reference_rows": int(sum(rep["run"]["reference_rows"] for rep, *_ in done)),
                      "time_base": run_block(run.get("time_base")),
                      "events": run.get("events") or []}
     return report, done[0][1]
