@@ -72,6 +72,14 @@ def _plain_log(ax, axis: str = "y") -> None:
     a.set_minor_formatter(NullFormatter())
 
 
+def report_markers(report: dict) -> list:
+    """Gaps and segment starts; gyro and estimator switches, attitude resets (the first 50 events)."""
+    ev = [e for e in ((report.get("run") or {}).get("events") or [])[:50]
+          if isinstance(e, dict) and isinstance(e.get("t"), (int, float))]
+    return list(((report.get("series_preview") or {}).get("markers")) or []) + [
+        {"t": float(e["t"]), "label": str(e.get("kind", "event")).replace("_", " "), "kind": e.get("kind")} for e in ev]
+
+
 #: line colours of the events a log names (others: purple)
 _EVENT_C = {"gyro_switch": "#c0392b", "estimator_switch": "#e67e22", "attitude_reset": "#2c3e50"}
 

@@ -284,16 +284,6 @@ def _traces(report: dict) -> dict:
     return ((report.get("series_preview") or {}).get("traces")) or {}
 
 
-def _markers(report: dict) -> list:
-    """Gaps and segment starts (series_preview), and what a log names on the time axis: gyro and
-    estimator switches, attitude resets (run.events, the first 50)."""
-    marks = list(((report.get("series_preview") or {}).get("markers")) or [])
-    events = ((report.get("run") or {}).get("events")) or []
-    marks += [{"t": float(e["t"]), "label": str(e.get("kind", "event")).replace("_", " "), "kind": e.get("kind")}
-              for e in events[:50] if isinstance(e, dict) and isinstance(e.get("t"), (int, float))]
-    return marks
-
-
 def _t0(report: dict) -> float:
     ts = [tr["t"][0] for tr in _traces(report).values() if tr.get("t")]
     return min(ts) if ts else 0.0
@@ -330,7 +320,7 @@ NO_SERIES = ("<p class=muted>This report has no <span class=mono>series_preview<
 def vehicle_page(r: dict, title: str) -> str:
     run = r.get("run") or {}
     findings = [f for f in r.get("findings") or [] if isinstance(f, dict)]
-    t0, mk = _t0(r), _markers(r)
+    t0, mk = _t0(r), F.report_markers(r)
 
     def residual_for(f):
         ch = (f.get("residual") or {}).get("channel")
@@ -388,7 +378,7 @@ def vehicle_page(r: dict, title: str) -> str:
 def attitude_page(r: dict, title: str) -> str:
     run = r.get("run") or {}
     findings = [f for f in r.get("findings") or [] if isinstance(f, dict)]
-    t0, mk = _t0(r), _markers(r)
+    t0, mk = _t0(r), F.report_markers(r)
     n = len(findings)
     verdict = (f"<div class=verdict><p><b>{n} finding{'s' * (n != 1)}</b>, ranked by their test statistic "
                "(white noise last).</p>" + findings_table(findings) + gain_html(r.get("gain")) + "</div>")

@@ -50,14 +50,23 @@ REF_DEV = 0.005  # rad/s: a reference that turns this much faster than the gyro 
 REF_JUMP = 0.05  # rad/s over one interval, and 10 robust standard deviations: a jump (reset)
 
 
-def interval_rates(w, dt, q_ref, anchors):
+def interval_rates(w, dt, q_ref, anchors, lam=0.0):
     """Per anchor interval: global-frame gyro rate ``gamma``, reference rate ``rho`` (rad/s), the
-    interval lengths and the interval start times' row indices. Rates held over each step."""
+    interval lengths and the interval start times' row indices. Rates held over each step, or with
+    the sampling convention ``lam`` of the reference fit (:func:`._gyro.reference_fit`: the rate
+    over step k is ``omega_k + lam (D1_k - D3_k / 12)``; 0 holds each sample, 1/2 takes the samples
+    as the rate at their stamps)."""
     w = np.where(np.isfinite(w), w, 0.0)
     a0, aN = int(anchors[0]), int(anchors[-1])
     P = np.empty((aN - a0 + 1, 4))
     P[0] = [1.0, 0.0, 0.0, 0.0]
-    P[1:] = cumulative_quat_product_np(quat_exp_np(w[a0:aN] * dt))
+    step = w[a0:aN]
+    if lam:
+        w_pad = np.concatenate([w[:1], w, w[-1:], w[-1:]], 0)  # w_pad[k + 1] = w[k]
+        wc = w_pad[a0 : aN + 3]
+        w0, w1, w2, wm = wc[1:-2], wc[2:-1], wc[3:], wc[:-3]
+        step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
+    P[1:] = cumulative_quat_product_np(quat_exp_np(step * dt))
     P /= np.linalg.norm(P, axis=1, keepdims=True)
     starts, ends = anchors[:-1], anchors[1:]
     rel = quat_multiply_np(quat_conjugate_np(P[starts - a0]), P[ends - a0])
@@ -94,14 +103,14 @@ def _window_stats(x, dti, win):
     return mean, se
 
 
-def consistency(w, dt, q_ref, anchors, t, valid=None):
+def consistency(w, dt, q_ref, anchors, t, valid=None, lam=0.0):
     """Flag the (interval, global axis) cells where the reference is inconsistent with the gyro.
 
     Returns ``use`` (n_int, 3) bool (False: leave out), ``spans``: a list of dicts ``{axis, t0, t1,
     rate, kind}`` (``kind`` "turns while the gyro says still" or "jumps"), and ``still``: the
     per-interval flag "gyro and reference both say still".
     """
-    gamma, rho, dti = interval_rates(w, dt, q_ref, anchors)
+    gamma, rho, dti = interval_rates(w, dt, q_ref, anchors, lam)
     n_all = len(dti)
     idx = np.arange(n_all) if valid is None else np.nonzero(valid)[0]
     use_all, still_all = np.ones((n_all, 3), bool), np.zeros(n_all, bool)

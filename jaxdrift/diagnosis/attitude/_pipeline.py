@@ -70,6 +70,9 @@ from ._report import assemble_report
 __all__ = ["AttitudeState", "diagnose_attitude"]
 
 
+#: a fitted sampling convention further than this from "held" (0) has the reference checked again in it
+LAM_RECHECK = 0.2
+
 #: the diagnosis takes a run split by gaps whole and analyses its segments jointly (integration
 #: restarts at each segment; the reference intervals across a gap are left out)
 SEGMENTS_JOINT = True
@@ -254,6 +257,18 @@ def reference_step(s):
     noise_kind_step(s)
     sample_var = s.sigma_axis**2
     fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    if abs(fit0["lam"]) > LAM_RECHECK:
+        # the gyro's samples follow another convention than a rate held over the step after each
+        # (a motion-capture IMU's samples are the rate at their stamps): at a fast turn's angular
+        # acceleration the held one lags by half a step and reads as jumps of the reference. The
+        # check again, in the fitted convention
+        use2, spans2, _ = consistency(s.w, s.dt, q_ref, anchors, s.t, valid, lam=fit0["lam"])
+        use2 &= valid[:, None]
+        if not np.array_equal(use2, use):
+            s.notes.append(f"the reference was checked again in the gyro's fitted sampling convention (lam = "
+                           f"{fmt(fit0['lam'])}): {len(s.ref_spans)} inconsistent span(s) before, {len(spans2)} after")
+            use, s.ref_spans = use2, spans2
+            fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     if s.noise_finding is not None and s.noise_finding["estimate_kind"] == "upper_bound" or not s.noise_found:
         # the weights came from a noise level that may hold true motion (vibration): the residuals
         # between reference rows say how large the noise is in the band the fit uses
