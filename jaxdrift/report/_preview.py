@@ -170,12 +170,17 @@ def attitude_preview(run: dict, plots: dict, report: dict, bins: int = BINS) -> 
         traces["array_residual_after"] = _trace(tt, ra, "m/s^2", "corrected positions", "array_residual", bins)
     spectra = {}
     dt = float(run.get("dt") or np.median(np.diff(t)))
-    if w.shape[0] >= 64 and dt > 0:
+    # on the longest stretch of finite rows (a gapped log has NaN rows between its segments)
+    fin = np.concatenate([[False], np.isfinite(w).all(1), [False]]).astype(np.int8)
+    starts, ends = np.flatnonzero(np.diff(fin) == 1), np.flatnonzero(np.diff(fin) == -1)
+    k = int(np.argmax(ends - starts)) if len(starts) else 0
+    ws = w[starts[k]:ends[k]] if len(starts) else w[:0]
+    if ws.shape[0] >= 64 and dt > 0:
         from scipy.signal import welch
 
-        nper = int(min(1024, 2 ** np.floor(np.log2(w.shape[0] / 4))))
+        nper = int(min(1024, 2 ** np.floor(np.log2(ws.shape[0] / 4))))
         for i, ax in enumerate(("wx", "wy", "wz")):
-            f, p = welch(w[:, i] - np.mean(w[:, i]), fs=1.0 / dt, nperseg=max(nper, 16))
+            f, p = welch(ws[:, i] - np.mean(ws[:, i]), fs=1.0 / dt, nperseg=max(nper, 16))
             spectra[ax] = {"f": _r(f[1:]), "y": _r(p[1:]), "unit": "(rad/s)^2/Hz", "label": f"{ax} gyro"}
     tb = (report.get("run") or {}).get("time_base") or run.get("time_base")
     return _block(traces, _time_markers(tb, t), spectra, bins)
