@@ -32,7 +32,7 @@ from scipy.spatial.transform import Rotation
 from ...io._timebase import place_nearest
 from ._common import fmt
 
-__all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG"]
+__all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG", "MIN_MOTION_RAD_S"]
 
 MAX_OFFSET_S = 0.1
 #: the reference's rates are taken over spans of at least this [s]
@@ -42,8 +42,8 @@ Z_APPLY = 5.0
 N_BLOCKS = 10
 MIN_OFFSET_STEPS = 0.25
 MIN_ANGLE_DEG = 0.1
-#: the reference's rates must reach this multiple of the gyro's white noise (RMS) to tell anything
-MIN_MOTION = 20.0
+#: a reference turning slower than this (RMS) [rad/s] tells neither clock nor frame
+MIN_MOTION_RAD_S = 0.05
 
 
 def _xyzw(q):
@@ -122,10 +122,7 @@ def alignment_step(s):
     # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
     span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
     tm, wb = _ref_rates(tq, q, span)
-    noise = math.sqrt(max(s.noise_var_rate / dt, 1e-300))
-    if len(tm) < 10 * N_BLOCKS or float(np.sqrt(np.mean(wb**2))) < MIN_MOTION * noise / math.sqrt(max(len(tm), 1)) * 10:
-        return
-    if float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < 0.05:  # rad/s: a body that hardly turns
+    if len(tm) < 10 * N_BLOCKS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
         return
     tau = _offset(run["t"], s.w, tm, wb, dt)
     blocks = np.array_split(np.arange(len(tm)), N_BLOCKS)
