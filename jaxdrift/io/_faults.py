@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ._timebase import longest_run, true_runs
+
 __all__ = ["find_faults", "sound_part", "STUCK_MIN_S", "STUCK_MIN_SAMPLES", "CLIP_MIN_SAMPLES",
            "SOUND_MIN_SHARE"]
 
@@ -28,19 +30,12 @@ CLIP_MIN_SAMPLES = 5
 SOUND_MIN_SHARE = 0.2
 
 
-def _runs(mask):
-    """[i0, i1) of the runs of True in ``mask``."""
-    m = np.concatenate([[False], mask, [False]]).astype(np.int8)
-    d = np.diff(m)
-    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
-
-
 def _stuck(t, x, dt):
     """Runs of exactly repeated values, long enough to be a fault: [(i0, i1, value)]."""
     same = np.concatenate([[False], x[1:] == x[:-1]])  # sample i repeats sample i - 1
     out = []
     need = max(STUCK_MIN_SAMPLES, int(np.ceil(STUCK_MIN_S / dt)))
-    for a, b in _runs(same):
+    for a, b in true_runs(same):
         i0 = a - 1  # the first sample of the repeated value
         if b - i0 >= need:
             out.append((i0, b, float(x[i0])))
@@ -59,7 +54,7 @@ def _clipped(x, skip):
         n = int(at.sum())
         if n < CLIP_MIN_SAMPLES:
             continue
-        runs = [(a, b) for a, b in _runs(at) if b - a >= 2]
+        runs = [(a, b) for a, b in true_runs(at) if b - a >= 2]
         if sum(b - a for a, b in runs) >= CLIP_MIN_SAMPLES:
             idx = np.flatnonzero(at)
             return int(idx[0]), int(idx[-1]) + 1, v, n
@@ -102,7 +97,4 @@ def sound_part(n: int, faults: list[dict]) -> tuple[int, int]:
     for f in faults:
         i0, i1 = f["rows"]
         bad[i0:i1] = True
-    runs = _runs(~bad)
-    if not runs:
-        return 0, 0
-    return max(runs, key=lambda r: r[1] - r[0])
+    return longest_run(~bad)

@@ -37,7 +37,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["GAP_FACTOR", "BRIDGE_SAMPLES", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
-           "sample_segments", "resample", "place_nearest", "row_segments", "build_time_base",
+           "sample_segments", "resample", "place_nearest", "row_segments", "true_runs", "longest_run", "build_time_base",
            "uniform_time_base", "segment_arrays", "run_block"]
 
 #: a step longer than GAP_FACTOR x the nominal step is a gap (a sample or more is missing)
@@ -108,14 +108,22 @@ def resample(t: np.ndarray, v: np.ndarray, grid: np.ndarray, *, fs_grid: float |
     return out, np.clip(frac, 0.0, 1.0), st, filtered
 
 
+def true_runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Runs of consecutive True entries of ``mask`` as ``[i0, i1)``, in order."""
+    d = np.diff(np.concatenate([[False], mask, [False]]).astype(np.int8))
+    return [(int(a), int(b)) for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1))]
+
+
+def longest_run(mask: np.ndarray) -> tuple[int, int]:
+    """The longest run of True in ``mask`` as ``[i0, i1)`` (the first of equals; (0, 0) if none)."""
+    runs = true_runs(mask)
+    return max(runs, key=lambda r: r[1] - r[0]) if runs else (0, 0)
+
+
 def row_segments(valid: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[int, int]]]:
     """Runs of consecutive True rows as ``[i0, i1)``: (kept: 2 rows or more, dropped: shorter)."""
-    v = np.concatenate([[False], valid, [False]]).astype(np.int8)
-    d = np.diff(v)
-    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
-    kept = [(int(a), int(b)) for a, b in zip(starts, ends) if b - a >= 2]
-    dropped = [(int(a), int(b)) for a, b in zip(starts, ends) if b - a < 2]
-    return kept, dropped
+    runs = true_runs(valid)
+    return [r for r in runs if r[1] - r[0] >= 2], [r for r in runs if r[1] - r[0] < 2]
 
 
 def place_nearest(grid: np.ndarray, valid: np.ndarray, t_ref: np.ndarray, v_ref: np.ndarray,

@@ -18,6 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..io._timebase import longest_run
+
 __all__ = ["minmax_decimate", "vehicle_preview", "attitude_preview", "durability_preview", "BINS"]
 
 SCHEMA = "jaxdrift.series_preview/1"
@@ -171,10 +173,8 @@ def attitude_preview(run: dict, plots: dict, report: dict, bins: int = BINS) -> 
     spectra = {}
     dt = float(run.get("dt") or np.median(np.diff(t)))
     # on the longest stretch of finite rows (a gapped log has NaN rows between its segments)
-    fin = np.concatenate([[False], np.isfinite(w).all(1), [False]]).astype(np.int8)
-    starts, ends = np.flatnonzero(np.diff(fin) == 1), np.flatnonzero(np.diff(fin) == -1)
-    k = int(np.argmax(ends - starts)) if len(starts) else 0
-    ws = w[starts[k]:ends[k]] if len(starts) else w[:0]
+    i0, i1 = longest_run(np.isfinite(w).all(1))
+    ws = w[i0:i1]
     if ws.shape[0] >= 64 and dt > 0:
         from scipy.signal import welch
 

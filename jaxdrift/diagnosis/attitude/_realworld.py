@@ -19,6 +19,7 @@ import math
 import numpy as np
 from scipy import stats
 
+from ...io._timebase import longest_run
 from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
 from ._noise import estimate_white_noise
@@ -31,13 +32,7 @@ STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estim
 
 def _longest(mask):
     """(i0, i1) of the longest run of True in ``mask`` (or (0, 0))."""
-    if mask is None or not mask.any():
-        return 0, 0
-    m = np.r_[False, mask, False].astype(np.int8)
-    d = np.diff(m)
-    a, b = np.nonzero(d == 1)[0], np.nonzero(d == -1)[0]
-    k = int(np.argmax(b - a))
-    return int(a[k]), int(b[k])
+    return (0, 0) if mask is None else longest_run(mask)
 
 
 def _noise_interval(wn, dt):
