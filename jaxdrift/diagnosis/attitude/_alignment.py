@@ -30,6 +30,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...io._timebase import place_nearest
+from ...models._quaternion import quat_conjugate_np, quat_log_np, quat_multiply_np
 from ._common import fmt
 
 __all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG", "MIN_MOTION_RAD_S"]
@@ -57,15 +58,13 @@ def _wxyz(q):
 def _ref_rates(tq, q, span):
     """Body rates over consecutive reference samples ``span`` apart (a motion-capture attitude
     differenced sample by sample is mostly its own noise): (t mid, w), spans without a gap."""
-    d1 = np.diff(tq)
-    med = np.median(d1)
-    a, b = np.arange(len(tq) - span), np.arange(span, len(tq))
-    a, b = a[::span], b[::span]
+    med = np.median(np.diff(tq))
+    a = np.arange(0, len(tq) - span, span)
+    b = a + span
     d = tq[b] - tq[a]
     ok = (d > 0) & (d <= (span + 0.5) * med)
     a, b, d = a[ok], b[ok], d[ok]
-    r = Rotation.from_quat(_xyzw(q[a])).inv() * Rotation.from_quat(_xyzw(q[b]))
-    return 0.5 * (tq[a] + tq[b]), r.as_rotvec() / d[:, None]
+    return 0.5 * (tq[a] + tq[b]), quat_log_np(quat_multiply_np(quat_conjugate_np(q[a]), q[b])) / d[:, None]
 
 
 def _gyro_at(t_grid, w, t):

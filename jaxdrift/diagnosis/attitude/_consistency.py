@@ -38,6 +38,7 @@ from ...models._quaternion import (
     rotation_matrix_np,
 )
 from .._diffnoise import mad_sigma
+from ._gyro import convention_terms
 
 __all__ = ["interval_rates", "consistency", "still_rows", "AXES",
            "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "WINDOW_S"]
@@ -52,10 +53,9 @@ REF_JUMP = 0.05  # rad/s over one interval, and 10 robust standard deviations: a
 
 def interval_rates(w, dt, q_ref, anchors, lam=0.0):
     """Per anchor interval: global-frame gyro rate ``gamma``, reference rate ``rho`` (rad/s), the
-    interval lengths and the interval start times' row indices. Rates held over each step, or with
-    the sampling convention ``lam`` of the reference fit (:func:`._gyro.reference_fit`: the rate
-    over step k is ``omega_k + lam (D1_k - D3_k / 12)``; 0 holds each sample, 1/2 takes the samples
-    as the rate at their stamps)."""
+    interval lengths and the interval start times' row indices. Rates held over each step, or in
+    the sampling convention ``lam`` of the reference fit (:func:`._gyro.convention_terms`; 0 holds
+    each sample, 1/2 takes the samples as the rate at their stamps)."""
     w = np.where(np.isfinite(w), w, 0.0)
     a0, aN = int(anchors[0]), int(anchors[-1])
     P = np.empty((aN - a0 + 1, 4))
@@ -63,9 +63,8 @@ def interval_rates(w, dt, q_ref, anchors, lam=0.0):
     step = w[a0:aN]
     if lam:
         w_pad = np.concatenate([w[:1], w, w[-1:], w[-1:]], 0)  # w_pad[k + 1] = w[k]
-        wc = w_pad[a0 : aN + 3]
-        w0, w1, w2, wm = wc[1:-2], wc[2:-1], wc[3:], wc[:-3]
-        step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
+        w0, dw = convention_terms(w_pad[a0 : aN + 3])
+        step = w0 + lam * dw
     P[1:] = cumulative_quat_product_np(quat_exp_np(step * dt))
     P /= np.linalg.norm(P, axis=1, keepdims=True)
     starts, ends = anchors[:-1], anchors[1:]

@@ -27,13 +27,21 @@ from ...models._quaternion import (
     rotation_matrix_np,
 )
 
-__all__ = ["reference_fit", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment"]
+__all__ = ["reference_fit", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
 
 
 def _interval_sums(X, starts, ends):
     """Sums of rows ``X[starts[i]:ends[i]]`` (contiguous, ends[i] == starts[i+1])."""
     c = np.concatenate([np.zeros((1,) + X.shape[1:]), np.cumsum(X, 0)], 0)
     return c[ends] - c[starts]
+
+
+def convention_terms(wc):
+    """``(omega_k, D1_k - D3_k / 12)`` of each step: the rate over step k in the sampling
+    convention ``lam`` of :func:`reference_fit` is ``omega_k + lam (D1_k - D3_k / 12)``. ``wc``
+    holds the rows around the n steps: one before them, the n rows that start them, two after."""
+    w0, w1, w2, wm = wc[1:-2], wc[2:-1], wc[3:], wc[:-3]
+    return w0, (w1 - w0) - (w2 - w1 - w0 + wm) / 12.0
 
 
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
@@ -86,8 +94,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         lam = theta[sc + 3]
         b_ext = np.concatenate([b_rows[:1], b_rows, b_rows[-1:], b_rows[-1:]], 0)
         wc_all = (w_pad[a0 : aN + 3] - b_ext) / s  # rows a0-1 .. aN+1
-        w0, w1, w2, wm = wc_all[1:-2], wc_all[2:-1], wc_all[3:], wc_all[:-3]
-        dw = (w1 - w0) - (w2 - w1 - w0 + wm) / 12.0
+        w0, dw = convention_terms(wc_all)
         wc = w0 + lam * dw  # rate over each step
         d = quat_exp_np(wc * dt)
         # per-interval integration: prefix products restart at every anchor (re-anchored on the reference)

@@ -61,7 +61,8 @@ from ._common import (
     Z_SIGNIFICANT,
     fmt,
 )
-from ._gyro import cluster_cov, half_rate_fit, reference_fit, reml_drift, rw_cov, static_segment
+from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reml_drift, rw_cov,
+                    static_segment)
 from ._noise import allan, estimate_white_noise
 from ._alignment import alignment_step
 from ._vibration import vibration_step
@@ -152,21 +153,17 @@ def diagnose_attitude(run, positions=None):
     from ._context import merge_parts, onboard_block, sensor_parts, slice_run
 
     parts, dropped = sensor_parts(run)
-    if parts is None:
-        s = _diagnose_state(run, positions)
-        report = assemble_report(s)
-        onboard_block(report, run, s.bias_fit, (float(run["t"][0]), float(run["t"][-1])))
-        report["run"]["events"] = run.get("events") or []
-        return report, s.plots
     done = []
-    for i0, i1, label in parts:
-        sub = slice_run(run, i0, i1)
+    for sub, label in ([(run, None)] if parts is None else [(slice_run(run, i0, i1), lb) for i0, i1, lb in parts]):
         s = _diagnose_state(sub, positions)
         rep = assemble_report(s)
-        onboard_block(rep, sub, s.bias_fit, (float(sub["t"][0]), float(sub["t"][-1])))
-        done.append((rep, s.plots, label, (float(sub["t"][0]), float(sub["t"][-1]))))
-    report, plots = merge_parts(done, run, dropped)
-    return report, plots
+        span = (float(sub["t"][0]), float(sub["t"][-1]))
+        onboard_block(rep, sub, s.bias_fit, span)
+        done.append((rep, s.plots, label, span))
+    if parts is None:
+        done[0][0]["run"]["events"] = run.get("events") or []
+        return done[0][:2]
+    return merge_parts(done, run, dropped)
 
 
 def _diagnose_state(run, positions=None):
@@ -538,8 +535,8 @@ def _reference_attitude_error(s, ref_rows, lam):
 
         def err_of(rates):
             r_ = np.concatenate([rates[a0 : a0 + 1], rates[a0:i1], rates[i1 - 1 : i1], rates[i1 - 1 : i1]], 0)
-            w0, w1, w2, wm = r_[1:-2], r_[2:-1], r_[3:], r_[:-3]
-            step = w0 + lam * ((w1 - w0) - (w2 - w1 - w0 + wm) / 12.0)
+            w0, dw = convention_terms(r_)
+            step = w0 + lam * dw
             qi = integrate_rates_np(q_ref[a0], step, dt)
             return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
 

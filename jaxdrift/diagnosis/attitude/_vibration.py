@@ -128,7 +128,7 @@ def vibration_step(s):
         spans = _spans(win, vib, s.t)
     else:
         f, p = _spectrum(w, win, dt)
-        peaks, ratio = _peaks(f, p, f_min)
+        peaks, _ = _peaks(f, p, f_min)
         if not peaks:
             return
         quiet = np.zeros(len(win), bool)
