@@ -67,7 +67,7 @@ def test_a_finding_the_resimulation_does_not_confirm_stays_a_finding():
     sel0 = Selection(fit, cov, 1.0, np.array([80.0, 45.0]), {}, [], {}, fit.rss, [fit.rss])
     sel, dropped = confirm_by_resimulation(prob, sel0)
     assert [c.label for c, *_ in dropped] == ["parameter_error[I]"]
-    _, _, before, after, without = dropped[0]
+    _, _, channel, before, after, without = dropped[0]
     assert without < 0.9 * after
     out = unconfirmed_findings(prob, sel0, van, 2.0, [], dropped)
     assert len(out) == 1
@@ -76,7 +76,7 @@ def test_a_finding_the_resimulation_does_not_confirm_stays_a_finding():
     assert f["estimate"] == pytest.approx(0.55)
     lo, hi = f["interval"]
     assert lo < 0.55 < hi  # its own interval, from the fit that selected it (se 0.01)
-    assert "not confirmed" in f["evidence"] and "above the drift band" in f["evidence"]
+    assert "not confirmed" in f["evidence"] and "restarted from the measured motion" in f["evidence"]
     assert [c.label for c in sel.fit.causes] == ["force_offset[f1]"]
 
 

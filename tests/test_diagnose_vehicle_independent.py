@@ -160,7 +160,7 @@ def test_a_correction_that_makes_the_simulated_pitch_worse_stays_out():
     sel = Selection(fit, np.eye(2), 1.0, np.array([10.0, 5.0]), {}, [], {}, fit.rss, [fit.rss])
     new, dropped = confirm_by_resimulation(prob, sel)
     assert [c.label for c, *_ in dropped] == ["parameter_error[I]"]
-    _, _, before, after, without = dropped[0]
+    _, _, channel, before, after, without = dropped[0]
     assert without < 0.9 * after
     assert [c.label for c in new.fit.causes] == ["force_offset[f1]"]
     assert abs(new.fit.theta[0] - 80.0) < 2.0

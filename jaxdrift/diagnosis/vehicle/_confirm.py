@@ -85,10 +85,11 @@ def _reselected(prob: _Problem, sel: Selection, fit: Fit) -> Selection:
                      sel.rss0, sel.rss_path + [fit.rss])
 
 
-def _pitch_rms(pipe, model: dict, variants: list) -> list[float]:
-    """Force-driven pitch error of the model and of each (causes, theta) variant in the band of the
-    body modes (``_extend._dynamic_rms``: above the drift band), in one batched simulation."""
-    from ._extend import _dynamic_rms, _force_driven_pitch
+def _window_errors(pipe, model: dict, variants: list, window: int) -> list[dict]:
+    """Error of each measured motion channel for the model's variants (causes, theta), simulated
+    force-driven in windows restarted from the measured motion (``_shooting``), in one batched
+    simulation."""
+    from ._shooting import channel_errors, shooting_states
 
     run = pipe.run
     models, forces = [], []
@@ -96,64 +97,82 @@ def _pitch_rms(pipe, model: dict, variants: list) -> list[float]:
         p, corr = _apply(model, causes, theta)
         models.append(p)
         forces.append({ch: v[::pipe.U] for ch, v in pipe.corrected_forces(corr).items()})
-    ys = _force_driven_pitch(run, models, forces)
-    return [_dynamic_rms(y[:, 3] - run["beta"], run.dt) for y in ys]
+    ys = shooting_states(run, models, forces, window)
+    return [channel_errors(run, y, p, window) for y, p in zip(ys, models)]
 
 
-#: a cause leaves the extension when the force-driven pitch error without it is below this share
-#: of the error with it (a margin: the noise-driven error itself varies between close models)
+#: a cause leaves the extension when, on the channel it changes most, the re-simulated error
+#: without it is below this share of the error with it (a margin: the noise-driven error itself
+#: varies between close models)
 WORSE_FACTOR = 0.9
 
 
-def confirm_by_resimulation(prob: _Problem, sel: Selection, log=None) -> tuple[Selection, list]:
-    """Every correction must improve the force-driven simulation of the measured pitch where a
-    correction can change it: in the band of the body modes, above the drift band
-    (``_extend.DYNAMIC_BAND_HZ``). Below it the error is the open-loop random walk of the force
-    noise, which a right model drifts through as much as a wrong one, so the full-band error would
-    decide by chance (right stiffness, delay and inertia corrections were dropped that way on
-    independent hold-out runs whose full-band error the drift made larger than the model's).
+def _telling(err_with: dict, err_without: dict) -> str:
+    """The channel a cause changes most (largest ratio of the errors without and with it, either
+    way): the channel the cause explains, on which it is judged."""
+    return max(err_with, key=lambda c: abs(math.log(max(err_without[c], 1e-300) / max(err_with[c], 1e-300))))
 
-    The extension is re-simulated with all its causes and without each one (one batched solve); a
-    cause without which the band's pitch RMS error is below ``WORSE_FACTOR`` of the error with it
-    is dropped (the one whose removal helps most first, the rest refit), until none is. Only where
-    the extension's error is beyond twice what force noise alone leaves in the band (the noise-only
-    envelope of ``_extend.noise_pitch_dynamic_rms``; within it, which of two close models simulates
-    the pitch better is chance). Returns the new selection and the dropped causes with the band's
-    pitch RMS errors (model, extension with the cause, extension without it)."""
+
+def confirm_by_resimulation(prob: _Problem, sel: Selection, log=None) -> tuple[Selection, list]:
+    """Every correction must improve the force-driven simulation of the measured motion on the
+    channel it explains, judged by multiple shooting (``_shooting``): windows shorter than the
+    force noise's drift-off time, each restarted from the measured motion, so that neither the
+    open-loop random walk of the force noise nor a simulation that has drifted far from the run
+    decides (a right stiffness and a right delay were dropped on independent hold-out runs whose
+    whole-run simulation had drifted by a radian; issue #35).
+
+    The extension is re-simulated with all its causes and without each one (one batched solve). A
+    cause is judged on the channel whose error it changes most (pitch, heave, a spring travel:
+    ``_telling``); where its error without the cause is below ``WORSE_FACTOR`` of the error with
+    it, the cause is dropped (the one whose removal helps most first, the rest refit), until none
+    is. On the pitch only where the extension's error is beyond twice what force noise alone leaves
+    in a window (within it, which of two close models simulates better is chance). Returns the new
+    selection and the dropped causes with their numbers (channel, model, with, without)."""
     pipe, model = prob.pipe, prob.model
     fit = sel.fit
     if not pipe.run.has("beta") or not fit.causes:
         return sel, []
     from ._detectors import _force_hf_noise
-    from ._extend import noise_pitch_dynamic_rms
+    from ._extend import DRIFT_THRESHOLD_RAD, noise_pitch_std
+    from ._shooting import WINDOW_MAX_S, window_samples
 
+    run = pipe.run
     # the force noise: the smallest low-band level of the fit and of each fit without one cause
     # (a spurious cause leaves its own error in the residual) and the forces' 4th differences
     k = len(fit.causes)
-    levels = [prob.lowband_noise(fit.r)[0], _force_hf_noise(pipe.run)[0]]
+    levels = [prob.lowband_noise(fit.r)[0], _force_hf_noise(run)[0]]
     for i in range(k):
         keep = [j for j in range(k) if j != i]
         levels.append(prob.lowband_noise(prob.eval([fit.causes[j] for j in keep], fit.theta[keep])[0])[0])
-    unit = noise_pitch_dynamic_rms(model, pipe.run.dt)
-    if not math.isfinite(unit):  # sampled too slowly for the band: nothing to decide on
-        return sel, []
-    env = min(levels) * unit
+    sigma = min(levels)
+    std = sigma * noise_pitch_std(model, run.dt, min(run.n, int(WINDOW_MAX_S / run.dt) + 2))
+    above = np.flatnonzero(1.96 * std > DRIFT_THRESHOLD_RAD)
+    window = window_samples(run, above[0] * run.dt if above.size else None)
+    env = float(np.sqrt(np.mean(std[:window] ** 2)))
     dropped = []
     while fit.causes:
         k = len(fit.causes)
         variants = [([], [])] + [(fit.causes, fit.theta)] + [
             ([fit.causes[j] for j in range(k) if j != i], fit.theta[[j for j in range(k) if j != i]])
             for i in range(k)]
-        rms = _pitch_rms(pipe, model, variants)
-        before, after, loo = rms[0], rms[1], rms[2:]
-        i = int(np.argmin(loo))
-        if loo[i] >= WORSE_FACTOR * after or after <= 2.0 * env:
+        errs = _window_errors(pipe, model, variants, window)
+        before, after, loo = errs[0], errs[1], errs[2:]
+        worst = None
+        for i in range(k):
+            ch = _telling(after, loo[i])
+            if ch == "beta" and after["beta"] <= 2.0 * env:
+                continue
+            ratio = loo[i][ch] / max(after[ch], 1e-300)
+            if ratio < WORSE_FACTOR and (worst is None or ratio < worst[1]):
+                worst = (i, ratio, ch)
+        if worst is None:
             break
+        i, _, ch = worst
         c = fit.causes[i]
-        dropped.append((c, float(c.to_estimate(fit.theta[i])), before, after, loo[i]))
+        dropped.append((c, float(c.to_estimate(fit.theta[i])), ch, before[ch], after[ch], loo[i][ch]))
         if log is not None:
-            log.append(f"resimulation drops {c.label}: pitch rms above the drift band {before:.4g} model, "
-                       f"{after:.4g} extended, {loo[i]:.4g} without it")
+            log.append(f"resimulation drops {c.label}: {ch} error in {window * run.dt:.3g} s windows "
+                       f"{before[ch]:.4g} model, {after[ch]:.4g} extended, {loo[i][ch]:.4g} without it")
         keep = [j for j in range(k) if j != i]
         fit = _gauss_newton(prob, [fit.causes[j] for j in keep], fit.theta[keep])
     if not dropped:
@@ -175,10 +194,12 @@ def unconfirmed_findings(prob: _Problem, sel0: Selection, model: dict, sigma: fl
                       f"residual's RMS goes {imp['without']:.4g} -> {imp['with']:.4g} on the whole run, "
                       f"{a1:.4g} -> {b1:.4g} on the first half and {a2:.4g} -> {b2:.4g} on the second, "
                       f"which is not lower on all three")
-    for c, est, before, after, without in resim_out:
-        reasons[c] = (f"not confirmed, left out of the extended model: re-simulated force-driven, the "
-                      f"pitch error above the drift band is {after:.4g} rad with it and {without:.4g} "
-                      f"rad without it ({before:.4g} rad for the model as given)")
+    for c, est, ch, before, after, without in resim_out:
+        what = {"beta": "pitch", "z3": "heave", "s1": "front spring travel", "s2": "rear spring travel"}[ch]
+        unit = "rad" if ch == "beta" else "m"
+        reasons[c] = (f"not confirmed, left out of the extended model: re-simulated force-driven in windows "
+                      f"restarted from the measured motion, the {what} error is {after:.4g} {unit} with it and "
+                      f"{without:.4g} {unit} without it ({before:.4g} {unit} for the model as given)")
     if not reasons:
         return []
     fit0 = sel0.fit
