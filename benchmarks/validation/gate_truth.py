@@ -6,8 +6,9 @@ a defect of the check, not of the data (issue #35).
 
 Runs come from the independent generator ``gen_vehicle.py`` (designs ``standard``, ``nonlinear``,
 ``gain_drift``), sized as the validation sweep sizes them. Each run is read through the public API;
-the problem is set up as ``diagnose_vehicle_run`` sets it up (``select_with_form``: a nonlinear
-force the adequacy test finds is carried, as in a diagnosis); then the selection is replaced by the
+the problem is set up as ``diagnose_vehicle_run`` sets it up (in a run with a nonlinear effect,
+``select_with_form``: the nonlinear force the adequacy test finds is carried, as in a diagnosis);
+then the selection is replaced by the
 true linear causes at their true sizes and both checks run on it. Only runs with at least one
 linear systematic effect (offset, scale, delay, gain drift, parameter) count.
 
@@ -88,7 +89,8 @@ def run_one(case: dict, out_path: str, sizing: dict) -> dict:
             run = jaxdrift.read_vehicle_run(paths["csv"])
             model = jaxdrift.read_model(paths["model"])
             prob = _Problem(ResidualPipeline(run), model)
-            prob, _, _ = select_with_form(prob)
+            if any(e["cause"] in sweep.NONLINEAR for e in full["effects"]):
+                prob, _, _ = select_with_form(prob)  # carries the nonlinear force the test finds
             sel = true_selection(prob, full["effects"])
             log: list = []
             _, held = confirm_corrections(prob, sel, log)
@@ -108,10 +110,11 @@ def run_one(case: dict, out_path: str, sizing: dict) -> dict:
 
 
 def summarise(out: str) -> dict:
-    rows = []
+    rows = {}
     for path in sorted(glob.glob(os.path.join(out, "gate-*.jsonl"))):
-        with open(path) as fh:
-            rows += [json.loads(line) for line in fh if line.strip()]
+        with open(path) as fh:  # one row per run (a resumed sweep may have written one twice)
+            rows.update({(path, r["index"]): r for r in map(json.loads, filter(str.strip, fh))})
+    rows = list(rows.values())
     summary = {}
     for r in rows:
         d = summary.setdefault(r["design"], {"runs": 0, "kept_all": 0, "errors": 0, "drops": []})
