@@ -60,9 +60,8 @@ def _run_of(model, n=3001, dt=0.002, seed=1):
 def test_restarts_are_a_no_op_on_a_run_the_model_simulates_exactly():
     run, forces = _run_of(CAR)
     full = _force_driven_pitch(run, [CAR], [forces])[0]
-    for window in (250, 1000):
-        ys = shooting_states(run, [CAR], [forces], window)[0]
-        assert np.max(np.abs(ys - full)) < 1e-9
+    ys = shooting_states(run, [CAR], [forces], 1000)[0]
+    assert np.max(np.abs(ys - full)) < 1e-9
 
 
 def test_the_right_model_beats_a_wrong_one_in_windows():
@@ -71,8 +70,8 @@ def test_the_right_model_beats_a_wrong_one_in_windows():
     front spring travel the parameter explains."""
     true = dict(CAR, k3=0.8 * CAR["k3"])
     run, forces = _run_of(true)
-    for window in (500, 1500):
-        right, wrong = (channel_errors(run, y, p, window) for y, p in
-                        zip(shooting_states(run, [true, CAR], [forces, forces], window), (true, CAR)))
-        assert wrong["beta"] > 100 * right["beta"]
-        assert wrong["s1"] > 100 * right["s1"]
+    window = 1000  # the no-op test's compiled solve
+    right, wrong = (channel_errors(run, y, p, window) for y, p in
+                    zip(shooting_states(run, [true, CAR], [forces, forces], window), (true, CAR)))
+    assert wrong["beta"] > 100 * right["beta"]
+    assert wrong["s1"] > 100 * right["s1"]
