@@ -226,7 +226,8 @@ def test_the_halves_check_tells_a_trade_from_noise():
 
     def imp(without, with_):
         return {"with": float(np.sqrt(np.mean(with_ ** 2))), "without": float(np.sqrt(np.mean(without ** 2))),
-                "halves_t": [half_t(without[:h], with_[:h]), half_t(without[h:], with_[h:])]}
+                "halves_t": [half_t(without[:h], with_[:h]), half_t(without[h:], with_[h:])],
+                "whole_t": half_t(without, with_)}
 
     # a trade: a large gain in the first half, a clear loss in the second
     gain = np.where(np.arange(n) < h, 1.0, 0.0) * wave
@@ -238,6 +239,13 @@ def test_the_halves_check_tells_a_trade_from_noise():
     # with the second half slightly higher by chance: still no clear loss
     jitter = np.where(np.arange(n) >= h, 0.05, 0.0) * rng.normal(0.0, 1.0, n)
     assert holds(imp(noise + effect, noise + jitter))
+    # a small true effect in a quiet second half, the loud first half a little higher by chance:
+    # no clear loss anywhere
+    small = np.where(np.arange(n) >= h, 0.3, 0.0) * wave
+    loud = np.where(np.arange(n) < h, 0.03, 0.0) * rng.normal(0.0, 1.0, n)
+    assert holds(imp(noise + small, noise + loud))
+    # a correction that makes the whole run clearly worse
+    assert not holds(imp(noise, noise + 0.3 * wave))
 
 
 def test_a_true_damper_error_in_a_run_with_a_quiet_half_is_kept():

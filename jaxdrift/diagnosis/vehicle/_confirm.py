@@ -4,14 +4,16 @@ A later finding can undo an earlier right one (``FIELD-NOTES``: a spurious inert
 right stiffness made the force-driven pitch error 12x worse while the report showed a gain). So
 each chosen cause is checked the way the report presents it: on the residual channel where it shows
 most (the evidence sentence's channel), the RMS with the cause must be below the RMS without it
-(the other causes kept) on the whole run, and not clearly above it on either half (the second half
-is data the cause's size was not tuned to alone; a cause that only trades one half against the
-other is fitting noise or the comparison's own error). "Clearly": the half's drop of the squared
-residual, summed over eight blocks, is below zero by more than ``HALF_T`` standard errors of the
-blocks' spread. A bare "lower on each half" dropped true corrections whose effect in one half is
-at the level of the noise (a true 4 % damper error in a run whose second half is quiet made that
-half's residual RMS 0.247 -> 0.279; ``benchmarks/validation/gate_truth.py``). A cause that fails is
-dropped and the rest refit.
+(the other causes kept) must not be clearly above the RMS without it (the other causes kept), on
+the whole run nor on either half (the second half is data the cause's size was not tuned to alone;
+a cause that only trades one half against the other is fitting noise or the comparison's own
+error). "Clearly": the drop of the squared residual, summed over eight blocks, is below zero by
+more than ``HALF_T`` standard errors of the blocks' spread. A bare "lower on the whole run and on
+each half" dropped true corrections whose effect in a half is at the level of the noise or of the
+comparison's own error (a true 4 % damper error in a run whose second half is quiet made that
+half's residual RMS 0.247 -> 0.279; a true 0.9 % inertia error took a loud first half from 0.449
+to 0.456 and with it the whole run; ``benchmarks/validation/gate_truth.py``). A cause that fails
+is dropped and the rest refit.
 """
 
 from __future__ import annotations
@@ -60,12 +62,12 @@ def improvement(prob: _Problem, fit: Fit, i: int, res1=None) -> dict:
     h = len(a) // 2
     return {"channel": ch, "without": _rms(a), "with": _rms(b),
             "halves": [(_rms(a[:h]), _rms(b[:h])), (_rms(a[h:]), _rms(b[h:]))],
-            "halves_t": [half_t(a[:h], b[:h]), half_t(a[h:], b[h:])]}
+            "halves_t": [half_t(a[:h], b[:h]), half_t(a[h:], b[h:])], "whole_t": half_t(a, b)}
 
 
 def holds(imp: dict) -> bool:
-    """The halves check's verdict: lower on the whole run, not clearly higher on either half."""
-    return imp["with"] < imp["without"] and all(t > -HALF_T for t in imp["halves_t"])
+    """The halves check's verdict: not clearly higher on the whole run nor on either half."""
+    return all(t > -HALF_T for t in (imp["whole_t"], *imp["halves_t"]))
 
 
 def confirm_corrections(prob: _Problem, sel: Selection, log=None) -> tuple[Selection, list]:
@@ -223,8 +225,8 @@ def unconfirmed_findings(prob: _Problem, sel0: Selection, model: dict, sigma: fl
         reasons[c] = (f"not confirmed, left out of the extended model: corrected, the {imp['channel']} "
                       f"residual's RMS goes {imp['without']:.4g} -> {imp['with']:.4g} on the whole run, "
                       f"{a1:.4g} -> {b1:.4g} on the first half and {a2:.4g} -> {b2:.4g} on the second "
-                      f"(drops of {t1:.2g} and {t2:.2g} standard errors): not lower on the whole run, or "
-                      f"clearly higher on a half")
+                      f"(drops of {imp['whole_t']:.2g}, {t1:.2g} and {t2:.2g} standard errors): clearly higher "
+                      f"on the whole run or on a half")
     for c, est, ch, before, after, without in resim_out:
         what = {"beta": "pitch", "z3": "heave", "s1": "front spring travel", "s2": "rear spring travel"}[ch]
         unit = "rad" if ch == "beta" else "m"
