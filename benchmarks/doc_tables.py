@@ -217,6 +217,31 @@ def nonlinear_coverage(root: Path) -> str:
     return "\n".join(rows)
 
 
+CALIBRATION = "docs/validation/calibration.json"
+GATE_TRUTH = "docs/validation/gate_truth.json"
+
+
+@block("calibration", CALIBRATION)
+def calibration(root: Path) -> str:
+    """Per kind of estimate, the 95 % intervals holding the truth (``calibration_table.py``'s JSON)."""
+    from benchmarks.validation import calibration_table
+
+    return calibration_table.markdown(load(root, CALIBRATION))
+
+
+@block("gate-truth", GATE_TRUTH)
+def gate_truth(root: Path) -> str:
+    """Per design, the runs whose true corrections both checks kept (``gate_truth.py``'s JSON)."""
+    s = load(root, GATE_TRUTH)
+    rows = ["| design | runs with a linear effect | true corrections all kept | dropped by a check |", "|---|---|---|---|"]
+    for design, d in sorted(s["designs"].items()):
+        drops = "; ".join(f"run {x['index']}: {', '.join((x.get('halves') or []) + (x.get('resim') or []))}"
+                          for x in d["drops"]) or "-"
+        rows.append(f"| {design} | {d['runs']} | {d['kept_all']} | {drops} |")
+    rows += ["", f"Runs of `gate_truth.py` ({', '.join(s['files'])}), diagnosed by {', '.join(s['diagnosed_by'])}."]
+    return "\n".join(rows)
+
+
 # ---------------------------------------------------------------------------------------------
 # durability (benchmarks/validation/durability_sweep.py, benchmarks/durability.py)
 # ---------------------------------------------------------------------------------------------

@@ -43,12 +43,14 @@ def _kind(effect: dict, cov: dict) -> str:
     return c
 
 
-def rows(caches: list[str]) -> tuple[dict, dict, list]:
-    """(per kind, per parameter, sweeps) counts: intervals given, holding the truth, not sized."""
+def rows(caches: list[str], nonlinear_only: tuple[str, ...] = ()) -> tuple[dict, dict, list]:
+    """(per kind, per parameter, sweeps) counts: intervals given, holding the truth, not sized. From
+    the caches in ``nonlinear_only`` only the nonlinear causes count (a sweep run without the
+    re-simulation, which the nonlinear causes' intervals do not depend on)."""
     kinds: dict = {}
     params: dict = {}
     sources = []
-    for cache in caches:
+    for cache in list(caches) + list(nonlinear_only):
         files = sorted(glob.glob(os.path.join(cache, "*.json")))
         n_ok = 0
         for path in files:
@@ -58,6 +60,8 @@ def rows(caches: list[str]) -> tuple[dict, dict, list]:
                 continue
             n_ok += 1
             for e, cov in zip(r["effects"], r["score"]["coverage"]):
+                if cache in nonlinear_only and e["cause"] not in sweep.NONLINEAR:
+                    continue
                 k = _kind(e, cov)
                 d = kinds.setdefault(k, {"intervals": 0, "covered": 0, "not_sized": 0})
                 sized = cov.get("interval") is not None
@@ -90,11 +94,13 @@ def markdown(res: dict) -> str:
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("caches", nargs="+", help="sweep cache folders (per-run JSON files)")
+    ap.add_argument("caches", nargs="*", help="sweep cache folders (per-run JSON files)")
+    ap.add_argument("--nonlinear", nargs="*", default=(), metavar="CACHE",
+                    help="caches of which only the nonlinear causes count (a sweep run with --no-simulation)")
     ap.add_argument("--out", help="write the rows here (JSON)")
     ap.add_argument("--commit", default=None, help="the commit that diagnosed the runs (recorded)")
     a = ap.parse_args(argv)
-    kinds, params, sources = rows(a.caches)
+    kinds, params, sources = rows(a.caches, tuple(a.nonlinear))
     res = {"target_share": TARGET, "min_count": MIN_COUNT, "diagnosed_by": a.commit, "sweeps": sources,
            "kinds": kinds, "parameters": params}
     print(markdown(res))

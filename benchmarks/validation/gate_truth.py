@@ -75,7 +75,8 @@ def run_one(case: dict, out_path: str, sizing: dict) -> dict:
     from jaxdrift.diagnosis.vehicle._problem import _Problem
     from jaxdrift.diagnosis.vehicle._residuals import ResidualPipeline
 
-    res = {"index": case["index"], "design": case.get("design", "standard"), "stratum": case["stratum"]}
+    res = {"index": case["index"], "design": case.get("design", "standard"), "stratum": case["stratum"],
+           "commit": sweep._commit()}
     scratch = tempfile.mkdtemp(prefix="gate-")
     try:
         w0 = time.time()
@@ -114,8 +115,10 @@ def summarise(out: str) -> dict:
     for path in sorted(glob.glob(os.path.join(out, "gate-*.jsonl"))):
         with open(path) as fh:  # one row per run (a resumed sweep may have written one twice)
             rows.update({(path, r["index"]): r for r in map(json.loads, filter(str.strip, fh))})
+    rows_keys = list(rows)
     rows = list(rows.values())
     summary = {}
+    seeds = sorted({os.path.basename(p)[len("gate-"):-len(".jsonl")] for p, _ in rows_keys})
     for r in rows:
         d = summary.setdefault(r["design"], {"runs": 0, "kept_all": 0, "errors": 0, "drops": []})
         if r.get("error"):
@@ -131,7 +134,8 @@ def summarise(out: str) -> dict:
                                "effects": [sweep.label(sweep.target(e)) + f"={e['value']:.4g}" for e in r["effects"]]})
         else:
             d["kept_all"] += 1
-    return summary
+    commits = sorted({r.get("commit") for r in rows if r.get("commit")})
+    return {"designs": summary, "files": seeds, "diagnosed_by": commits}
 
 
 def main(argv=None):
@@ -168,7 +172,7 @@ def main(argv=None):
             print(f"{case['index']:4d} {case['stratum']:7s} true={r.get('n_true')} {flag} {r.get('wall_s', 0):.1f}s",
                   flush=True)
     s = summarise(a.out)
-    for design, d in s.items():
+    for design, d in s["designs"].items():
         print(f"{design}: true corrections all kept in {d['kept_all']}/{d['runs']} runs ({d['errors']} errors)")
         for x in d["drops"]:
             print("   ", x)
