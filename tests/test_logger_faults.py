@@ -69,6 +69,22 @@ def test_no_fault_on_sound_runs(bases):
     assert find_faults(clean["t"], rounded, ["f1", "f2"]) == []
 
 
+def test_a_tyre_in_the_air_is_not_a_clipped_channel(bases):
+    """A wheel force that reads exactly 0 while its tyre is off the road (runs of a few samples at
+    the channel's minimum) is the tyre lifting off, not a logger at the end of its range: a
+    generated nonlinear run with 272 such samples on f2 was refused as clipped. A force pinned
+    below its rest at a negative value still is a clip."""
+    cols = bases[0]
+    x = cols["f2"].copy()
+    low = np.flatnonzero(x < np.quantile(x, 0.03))
+    x[low] = 0.0  # the lowest 3 % of the samples: the tyre in the air
+    assert find_faults(cols["t"], {**cols, "f2": x}, ["f1", "f2"]) == []
+    y = cols["f2"].copy()
+    y[low] = -250.0
+    found = find_faults(cols["t"], {**cols, "f2": y}, ["f1", "f2"])
+    assert [(f["channel"], f["kind"]) for f in found] == [("f2", "clipped")]
+
+
 def test_dead_channel_is_named_and_no_cause_fitted_to_it(tmp_path, bases):
     """f2 dies for the last 30 % (a loose connector): the report names it first with its span,
     the run is analysed on the rest, and no gain drift or scale is read on f2."""

@@ -7,7 +7,9 @@ one value for :data:`STUCK_MIN_S` (and :data:`STUCK_MIN_SAMPLES` samples) or lon
 measuring: ``dropout`` where it reads 0 (a loose connector, an amplifier that lost power),
 ``stuck`` where it holds another value (a frozen bus message). A channel pinned at its extreme value
 on :data:`CLIP_MIN_SAMPLES` samples or more, in runs of at least two, is ``clipped`` (an amplifier
-or an ADC at the end of its range): its largest peaks are lost.
+or an ADC at the end of its range): its largest peaks are lost. A minimum of exactly 0 is not a
+clip: a tyre cannot pull, so a wheel force that reads 0 while the wheel is in the air is the
+physics of a tyre lifting off (the ``tyre_lift_off`` cause), not the logger's range.
 
 :func:`find_faults` lists them per channel with their span; :func:`sound_part` gives the longest
 stretch of rows free of every fault, on which a vehicle run is then analysed (a run whose sound part
@@ -50,6 +52,8 @@ def _clipped(x, skip):
     if fin.size < 100:
         return None
     for v in (float(fin.max()), float(fin.min())):
+        if v == 0.0 and v == float(fin.min()):
+            continue  # a tyre in the air, not a clip
         at = (x == v) & ~skip
         n = int(at.sum())
         if n < CLIP_MIN_SAMPLES:
