@@ -38,7 +38,7 @@ import scipy.signal
 import scipy.stats
 
 from ._detectors import _force_hf_noise
-from ._nonlinear import (AXLES, BumpStop, States, StateTerm, TyreLiftOff, catalogue, model_states, signatures,
+from ._nonlinear import (AXLES, BumpStop, States, TyreLiftOff, catalogue, model_states, signatures,
                          state_words, travel_response)
 
 #: familywise false-alarm level of the adequacy test (Bonferroni over channels x terms)
@@ -247,8 +247,8 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
         lo, hi = c.bounds(st)
         key, phrase = state_words(c)
         band = [0.0, float(d["fc"])]
-        if not isinstance(c, StateTerm) and lo < th < hi:
-            if isinstance(c, BumpStop):
+        if c.nameable and lo < th < hi:
+            if c.sized_by_travel_profile:
                 c, th, se, st_c, th_iv = _stop_fit(prob, st, c, d)
             else:
                 th, se, st_c = _refine(prob, st, c, d, th, se)
@@ -280,7 +280,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
             ev = (f"The {_WORDS[nm]} left after the fit depends on {phrase} (compared below {band[1]:.3g} Hz, "
                   f"z = {z:.1f}): a part of RMS {size:.4g} {_UNITS[nm]} ({100 * size / max(_rms(y), 1e-300):.3g} % of "
                   f"the residual) that no candidate of the linear model explains"
-                  + ("" if isinstance(c, StateTerm) else
+                  + ("" if not c.nameable else
                      f"; as {c.label} it would need {c.to_estimate(th, st):.4g} {c.unit}, outside its plausible range"))
             ev += ("; not confirmed: no correction of the extended model takes it (a model-form finding names "
                    "what the model lacks)")
@@ -306,8 +306,7 @@ def _refine(prob, st, c, d, th, se):
     spring travel is measured the states already hold it and nothing is iterated. Returns
     ``(theta, se, states)``."""
     pipe, p = prob.pipe, st.p
-    if isinstance(c, BumpStop):
-        c.fix_travel(st)
+    c.prepare(st)
     if pipe.has_s[c.axle]:  # the travel is measured (``model_states``): nothing to iterate
         return th, se, st
     fs = 1.0 / pipe.h
@@ -443,7 +442,7 @@ def _could_not_show(prob, st, terms, tests, scales, m) -> tuple[list[str], list[
     pipe = prob.pipe
     blind, partly, unseen = [], [], []
     for j, c in enumerate(terms):
-        if isinstance(c, StateTerm) or (isinstance(c, BumpStop) and c.q != 0.97):
+        if not c.said_unseen:
             continue
         lim = detection_limit(j, tests, scales, m)
         i = c.axle + 1

@@ -59,6 +59,23 @@ class NonlinearCause:
     def label(self) -> str:
         return f"{self.name}[{self.target}]"
 
+    #: capabilities, read instead of the concrete class: a cause the report can name with a
+    #: correction (a bare state term cannot: it becomes ``model_form``); a size read off the
+    #: profile of the term's travel (a bump stop) rather than refined at the model's states
+    nameable = True
+    sized_by_travel_profile = False
+
+    @property
+    def said_unseen(self) -> bool:
+        """Whether "could not show" speaks for this term (once per cause, not per grid variant)."""
+        return self.nameable
+
+    def prepare(self, st: States) -> None:
+        """Fix what the term depends on before its size is refined (nothing by default)."""
+
+    def state_words(self) -> tuple[str, str]:  # (state key, phrase) of the state the force depends on
+        raise NotImplementedError
+
     def force(self, st: States) -> np.ndarray:  # extra spring force per unit theta [N]
         raise NotImplementedError
 
@@ -92,6 +109,10 @@ class DamperAsymmetry(NonlinearCause):
     the linear ``parameter_error``); reported as the rebound/compression ratio."""
 
     name, unit, spring_or_damper = "damper_asymmetry", "ratio", "d"
+
+    def state_words(self):
+        return (f"|s{self.axle + 1}'|", f"the size of the {AXLES[self.axle]} damper's velocity, with opposite "
+                "sign in rebound and compression")
 
     def force(self, st):
         d = st.p["d3" if self.axle == 0 else "d4"]
@@ -127,6 +148,9 @@ class ProgressiveSpring(NonlinearCause):
     """Spring force ``k (u + theta u^3)``, u the travel from the static one; theta [1/m^2]."""
 
     name, unit, spring_or_damper = "progressive_spring", "1/m^2", "k"
+
+    def state_words(self):
+        return f"u{self.axle + 1}^3", f"the cube of the {AXLES[self.axle]} spring's travel from its static value"
 
     def _u99(self, st):
         return max(float(np.quantile(np.abs(st.u[self.axle]), 0.99)), 1e-6)
@@ -172,9 +196,22 @@ class BumpStop(NonlinearCause):
     name, unit, spring_or_damper = "bump_stop", "N/m", "k"
     GRID = (0.9, 0.95, 0.97, 0.98, 0.99, 0.995)
 
+    sized_by_travel_profile = True
+
     def __init__(self, axle: int, q: float):
         super().__init__(axle)
         self.q = q
+
+    @property
+    def said_unseen(self) -> bool:  # the stop at the middle of the grid speaks for all of them
+        return self.q == 0.97
+
+    def prepare(self, st):
+        self.fix_travel(st)
+
+    def state_words(self):
+        i, ax = self.axle + 1, AXLES[self.axle]
+        return f"max(u{i} - u_b, 0)", f"the {ax} spring's compression beyond {1e3 * self.q:.3g} per mille of its travel"
 
     #: the stop's travel, once fixed (``fix_travel``): the quantile of the linear model's travel
     u_b = None
@@ -219,11 +256,19 @@ class StateTerm(NonlinearCause):
     """A state-dependent force outside the catalogue (``model_form`` only): a quadratic damper
     ``v |v|`` or a spring stiffer one way ``u^2``."""
 
+    nameable = False
+
     def __init__(self, axle: int, kind: str):
         super().__init__(axle)
         self.kind = kind
         self.name = "model_form"
         self.spring_or_damper = "d" if kind == "v|v|" else "k"
+
+    def state_words(self):
+        i, ax = self.axle + 1, AXLES[self.axle]
+        if self.kind == "v|v|":
+            return f"s{i}'|s{i}'|", f"the square of the {ax} damper's velocity (a quadratic damper)"
+        return f"u{i}^2", f"the square of the {ax} spring's travel (a spring stiffer one way than the other)"
 
     def force(self, st):
         v, u = st.v[self.axle], st.u[self.axle]
@@ -240,17 +285,7 @@ class StateTerm(NonlinearCause):
 #: the state each term depends on, in words (model_form findings)
 def state_words(c: NonlinearCause) -> tuple[str, str]:
     """(state key, phrase) of the state a cause's force depends on."""
-    ax = AXLES[c.axle]
-    i = c.axle + 1
-    if isinstance(c, DamperAsymmetry):
-        return f"|s{i}'|", f"the size of the {ax} damper's velocity, with opposite sign in rebound and compression"
-    if isinstance(c, ProgressiveSpring):
-        return f"u{i}^3", f"the cube of the {ax} spring's travel from its static value"
-    if isinstance(c, BumpStop):
-        return f"max(u{i} - u_b, 0)", f"the {ax} spring's compression beyond {1e3 * c.q:.3g} per mille of its travel"
-    if c.kind == "v|v|":
-        return f"s{i}'|s{i}'|", f"the square of the {ax} damper's velocity (a quadratic damper)"
-    return f"u{i}^2", f"the square of the {ax} spring's travel (a spring stiffer one way than the other)"
+    return c.state_words()
 
 
 def catalogue() -> list[NonlinearCause]:
