@@ -174,42 +174,31 @@ def test_a_run_that_starts_on_rough_road_at_speed_is_not_refused(tmp_path):
     assert run.n == len(s)
 
 
-def _true_selection(prob, truth):
-    """The selection a perfect fit would give: the true causes at their true sizes."""
-    from jaxdrift.diagnosis.vehicle._causes import Cause
-    from jaxdrift.diagnosis.vehicle._problem import Fit
-    from jaxdrift.diagnosis.vehicle._select import Selection
-
-    causes = [Cause(k, t) for k, t, _ in truth]
-    theta = np.array([c.kind.to_theta(v) for c, (_, _, v) in zip(causes, truth)])
-    r, res = prob.eval(causes, theta)
-    fit = Fit(causes, theta, r, res, float(r @ r), prob.jacobian(causes, theta))
-    return Selection(fit, np.eye(len(causes)), 1.0, np.full(len(causes), 100.0), {}, [], {}, fit.rss, [fit.rss])
-
-
 @pytest.mark.parametrize("case", ["k3", pytest.param("delay+scale", marks=pytest.mark.slow)])
 def test_the_true_corrections_pass_the_resimulation_check_of_a_drifting_run(case):
-    """Issue #35's two hold-out runs, rebuilt: a run whose force-driven simulation drifts off (20 N
+    """The two hold-out runs the whole-run check dropped true corrections on, rebuilt: a run whose force-driven simulation drifts off (20 N
     of force noise, 20 s on a class D road at 24 m/s) and the check given the *true* corrections: a
     10 % front-spring error (spring travels measured), or a 3 ms delay on f1 beside a 3 % scale on
     f2. Judged by multiple shooting on the channel each explains, every true correction stays
     (benchmarks/validation/gate_truth.py does the same on generated runs of every design)."""
+    from benchmarks.validation.gate_truth import true_selection
     from jaxdrift.diagnosis.vehicle._confirm import confirm_by_resimulation
 
     true = dict(SEED_CAR)
     if case == "k3":
         true["k3"] *= 0.90
-        effects, truth, channels = [], [("parameter_error", "k3", 0.90)], ("beta", "s1", "s2")
+        effects, truth, channels = [], [{"cause": "parameter_error", "parameter": "k3", "value": 0.90}], \
+            ("beta", "s1", "s2")
     else:
         effects = [{"cause": "force_delay", "channel": "f1", "value": 0.003},
                    {"cause": "force_scale", "channel": "f2", "value": 0.97}]
-        truth, channels = [("force_delay", "f1", 0.003), ("force_scale", "f2", 0.97)], ("beta",)
+        truth, channels = effects, ("beta",)
     cols, _ = gs.make_run(true, duration=20.0, fs=500.0, speed=24.0, road_class="D", seed=3501,
                           effects=effects, noise_sigma=20.0, channels=channels, road_n_max=10.0,
                           road_waves=120)
     prob = _Problem(ResidualPipeline(_run(cols)), SEED_CAR)
     log: list = []
-    _, dropped = confirm_by_resimulation(prob, _true_selection(prob, truth), log)
+    _, dropped = confirm_by_resimulation(prob, true_selection(prob, truth), log)
     assert dropped == [], log
 
 

@@ -1,5 +1,5 @@
 """Calibration of the vehicle diagnosis' 95 % intervals: per kind of estimate, the share that holds
-the truth, with the count (issue #35).
+the truth, with the count.
 
 Reads the per-run results of one or more validation sweeps (``sweep.py --cache``; any of the
 designs ``standard``, ``nonlinear``, ``gain_drift``) and counts, for every true effect of every run,
@@ -30,7 +30,7 @@ sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 
 from benchmarks.validation import sweep  # noqa: E402
 
-#: the share of 95 % intervals that must hold the truth, per kind (issue #35)
+#: the share of 95 % intervals that must hold the truth, per kind
 TARGET = 0.90
 #: the fewest intervals per kind for the share to be judged
 MIN_COUNT = 20

@@ -2,7 +2,7 @@
 (``_confirm.confirm_corrections``: the halves check on the residual channel; and
 ``confirm_by_resimulation``: the force-driven re-simulation) are given the *true* corrections of
 each generated run and must keep every one of them. A run where a check drops a true correction is
-a defect of the check, not of the data (issue #35).
+a defect of the check, not of the data.
 
 Runs come from the independent generator ``gen_vehicle.py`` (designs ``standard``, ``nonlinear``,
 ``gain_drift``), sized as the validation sweep sizes them. Each run is read through the public API;
@@ -111,14 +111,13 @@ def run_one(case: dict, out_path: str, sizing: dict) -> dict:
 
 
 def summarise(out: str) -> dict:
+    paths = sorted(glob.glob(os.path.join(out, "gate-*.jsonl")))
     rows = {}
-    for path in sorted(glob.glob(os.path.join(out, "gate-*.jsonl"))):
+    for path in paths:
         with open(path) as fh:  # one row per run (a resumed sweep may have written one twice)
             rows.update({(path, r["index"]): r for r in map(json.loads, filter(str.strip, fh))})
-    rows_keys = list(rows)
     rows = list(rows.values())
     summary = {}
-    seeds = sorted({os.path.basename(p)[len("gate-"):-len(".jsonl")] for p, _ in rows_keys})
     for r in rows:
         d = summary.setdefault(r["design"], {"runs": 0, "kept_all": 0, "errors": 0, "drops": []})
         if r.get("error"):
@@ -135,7 +134,8 @@ def summarise(out: str) -> dict:
         else:
             d["kept_all"] += 1
     commits = sorted({r.get("commit") for r in rows if r.get("commit")})
-    return {"designs": summary, "files": seeds, "diagnosed_by": commits}
+    files = [os.path.basename(p)[len("gate-"):-len(".jsonl")] for p in paths]
+    return {"designs": summary, "files": files, "diagnosed_by": commits}
 
 
 def main(argv=None):

@@ -51,8 +51,9 @@ def _clipped(x, skip):
     fin = x[np.isfinite(x) & ~skip]
     if fin.size < 100:
         return None
-    for v in (float(fin.max()), float(fin.min())):
-        if v == 0.0 and v == float(fin.min()):
+    lo = float(fin.min())
+    for v in (float(fin.max()), lo):
+        if v == 0.0 == lo:
             continue  # a tyre in the air, not a clip
         at = (x == v) & ~skip
         n = int(at.sum())

@@ -66,6 +66,7 @@ __all__ = [
     "pitch_spring_torque",
     "static_equilibrium",
     "pitch_states_from_force_states",
+    "spring_travel_np",
     "NonlinearSuspension",
 ]
 
@@ -279,6 +280,17 @@ def equilibrium_forces(params: HalfCarParams):
     f3 = p.a * p.m3 * p.g / (p.a + p.b)
     f4 = p.b * p.m3 * p.g / (p.a + p.b)
     return p.m1 * p.g + f3, p.m2 * p.g + f4, f3, f4
+
+
+def spring_travel_np(x, a: float, b: float) -> dict:
+    """The spring compressions of the data contract and their rates from force-mode states
+    ``(..., >= 8)`` (numpy): ``s1 = z3 - z1 - b sin(beta)``, ``s2 = z3 - z2 + a sin(beta)`` (zero
+    for the unloaded spring), ``ds1``, ``ds2``."""
+    x = np.asarray(x)
+    sb = np.sin(x[..., 3])
+    cb_rate = np.cos(x[..., 3]) * x[..., 7]
+    return {"s1": x[..., 2] - x[..., 0] - b * sb, "s2": x[..., 2] - x[..., 1] + a * sb,
+            "ds1": x[..., 6] - x[..., 4] - b * cb_rate, "ds2": x[..., 6] - x[..., 5] + a * cb_rate}
 
 
 def pitch_states_from_force_states(x):

@@ -131,7 +131,7 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
     import jax
     import jax.numpy as jnp
 
-    from ..models._halfcar import contact_forces, static_equilibrium
+    from ..models._halfcar import contact_forces, spring_travel_np, static_equilibrium
     from ..models._params import HalfCarParams
     from ..models._road import iso8608_road
 
@@ -159,14 +159,8 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
             jnp.asarray(ys_all), zeta, dzeta))
         zeta = np.asarray(zeta)
     y = ys_all[:n]
-    sb = np.sin(y[:, 3])
-    cb_rate = np.cos(y[:, 3]) * y[:, 7]
     out = {"t": t, "f1": f[:n, 0], "f2": f[:n, 1], "z1": y[:, 0], "z2": y[:, 1], "z3": y[:, 2],
-           "beta": y[:, 3], "beta_rate": y[:, 7],
-           "s1": y[:, 2] - y[:, 0] - true_params["b"] * sb,
-           "s2": y[:, 2] - y[:, 1] + true_params["a"] * sb,
-           "ds1": y[:, 6] - y[:, 4] - true_params["b"] * cb_rate,
-           "ds2": y[:, 6] - y[:, 5] + true_params["a"] * cb_rate,
+           "beta": y[:, 3], "beta_rate": y[:, 7], **spring_travel_np(y, true_params["a"], true_params["b"]),
            "zeta1": zeta[:n, 0], "zeta2": zeta[:n, 1]}
     if extra.size:
         out["extra"] = {"t": extra, "f1": f[n:, 0], "f2": f[n:, 1]}

@@ -38,8 +38,7 @@ import scipy.signal
 import scipy.stats
 
 from ._detectors import _force_hf_noise
-from ._nonlinear import (AXLES, BumpStop, States, TyreLiftOff, catalogue, model_states, signatures,
-                         state_words, travel_response)
+from ._nonlinear import AXLES, BumpStop, States, TyreLiftOff, catalogue, model_states, signatures, travel_response
 
 #: familywise false-alarm level of the adequacy test (Bonferroni over channels x terms)
 ALPHA = 1e-3
@@ -245,7 +244,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
         y = d["y"]
         before, after = d["tests"][j][4:6]
         lo, hi = c.bounds(st)
-        key, phrase = state_words(c)
+        key, phrase = c.state_words()
         band = [0.0, float(d["fc"])]
         if c.nameable and lo < th < hi:
             if c.sized_by_travel_profile:

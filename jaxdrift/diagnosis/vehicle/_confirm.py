@@ -47,8 +47,8 @@ def half_t(without: np.ndarray, with_: np.ndarray) -> float:
 
 
 def improvement(prob: _Problem, fit: Fit, i: int, res1=None) -> dict:
-    """RMS of the telling channel without cause ``i`` and with it, whole run and halves, and each
-    half's drop in standard errors (:func:`half_t`)."""
+    """RMS of the telling channel without cause ``i`` and with it, whole run and halves, and the
+    drop of the whole run and of each half in standard errors (:func:`half_t`)."""
     pipe, model = prob.pipe, prob.model
     if res1 is None:
         p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
@@ -150,7 +150,7 @@ def confirm_by_resimulation(prob: _Problem, sel: Selection, log=None) -> tuple[S
     force noise's drift-off time, each restarted from the measured motion, so that neither the
     open-loop random walk of the force noise nor a simulation that has drifted far from the run
     decides (a right stiffness and a right delay were dropped on independent hold-out runs whose
-    whole-run simulation had drifted by a radian; issue #35).
+    whole-run simulation had drifted by a radian).
 
     The extension is re-simulated with all its causes and without each one (one batched solve). A
     cause is judged on the channel whose error it changes most (pitch, heave, a spring travel:

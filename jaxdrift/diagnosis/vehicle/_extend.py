@@ -64,34 +64,53 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list) -> list:
     import jax
     import jax.numpy as jnp
 
-    from ...models._halfcar import static_equilibrium
     from ...solvers._inputs import SampledSignal
-    from ...models._params import HalfCarParams
 
-    dt = float(f"{run.dt:.9g}")
-    sub = int(math.ceil(dt / 1e-3 - 1e-9))
+    dt, sub = solve_grid(run)
     n, nb = run.n, _bucket(run.n)
     out, codes = [], []
     with jax.enable_x64(True):
         solve = _compiled_solve(nb, dt, sub)
-        for i0 in range(0, len(models), BATCH):
-            ms, fs = models[i0:i0 + BATCH], forces[i0:i0 + BATCH]
-            pad = BATCH - len(ms)
-            ms, fs = list(ms) + [ms[-1]] * pad, list(fs) + [fs[-1]] * pad
-            ps = [jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64),
-                                         HalfCarParams.from_dict(m)) for m in ms]
-            params = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *ps)
-            values = np.stack([np.stack([np.asarray(f["f1"], dtype=np.float64),
-                                         np.asarray(f["f2"], dtype=np.float64)], axis=1) for f in fs])
-            values = np.concatenate([values, np.repeat(values[:, -1:], nb - n, axis=1)], axis=1)
+        for i0, pad, _, params, values, y0 in batches(models, forces, nb - n):
             sig = jax.vmap(lambda v: SampledSignal(0.0, dt, v))(jnp.asarray(values))  # a batch of signals
-            y0 = jax.vmap(lambda p: static_equilibrium(p, "force"))(params)
-            ys, c = solve(params, sig, y0)
+            ys, c = solve(params, sig, jnp.asarray(y0))
             out += list(np.asarray(ys)[:BATCH - pad, :n])
             codes += np.asarray(c)[:BATCH - pad].tolist()
     if np.any(np.asarray(codes) != 0):
         raise RuntimeError(f"force-driven simulation failed (result codes {codes})")
     return out
+
+
+def solve_grid(run: VehicleRun) -> tuple[float, int]:
+    """The sample interval the solves are compiled for (the run's, to 9 significant digits) and the
+    fixed steps per sample (halved until at most 1 ms)."""
+    dt = float(f"{run.dt:.9g}")
+    return dt, int(math.ceil(dt / 1e-3 - 1e-9))
+
+
+def batches(models: list, forces: list, extra: int):
+    """The (model, forces) pairs in batches of ``BATCH`` (the last padded with its last pair), each
+    as ``(i0, pad, models, params, values, y0)``: stacked float64 parameters, the forces
+    ``(BATCH, n + extra, 2)`` held at their last value for ``extra`` samples past the end, and each
+    model's static equilibrium (numpy)."""
+    import jax
+    import jax.numpy as jnp
+
+    from ...models._halfcar import static_equilibrium
+    from ...models._params import HalfCarParams
+
+    for i0 in range(0, len(models), BATCH):
+        ms, fs = list(models[i0:i0 + BATCH]), list(forces[i0:i0 + BATCH])
+        pad = BATCH - len(ms)
+        ms, fs = ms + [ms[-1]] * pad, fs + [fs[-1]] * pad
+        ps = [jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(m))
+              for m in ms]
+        params = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *ps)
+        values = np.stack([np.stack([np.asarray(f["f1"], dtype=np.float64),
+                                     np.asarray(f["f2"], dtype=np.float64)], axis=1) for f in fs])
+        values = np.concatenate([values, np.repeat(values[:, -1:], extra, axis=1)], axis=1)
+        y0 = np.asarray(jax.vmap(lambda q: static_equilibrium(q, "force"))(params))
+        yield i0, pad, ms, params, values, y0
 
 
 #: compiled solves by (samples, sample interval, steps per sample), least recently used first

@@ -282,12 +282,6 @@ class StateTerm(NonlinearCause):
         return -math.inf, math.inf
 
 
-#: the state each term depends on, in words (model_form findings)
-def state_words(c: NonlinearCause) -> tuple[str, str]:
-    """(state key, phrase) of the state a cause's force depends on."""
-    return c.state_words()
-
-
 def catalogue() -> list[NonlinearCause]:
     """Every nonlinear cause and state term tried on a run (bump stops at each grid travel)."""
     out: list[NonlinearCause] = []

@@ -85,13 +85,10 @@ def shooting_states(run: VehicleRun, models: list, forces: list, window: int) ->
     import jax
     import jax.numpy as jnp
 
-    from ...models._halfcar import static_equilibrium
-    from ...models._params import HalfCarParams
     from ...solvers._inputs import SampledSignal
-    from ._extend import BATCH, _compiled_solve
+    from ._extend import BATCH, _compiled_solve, batches, solve_grid
 
-    dt = float(f"{run.dt:.9g}")
-    sub = math.ceil(dt / 1e-3 - 1e-9)
+    dt, sub = solve_grid(run)
     n = run.n
     starts = list(range(0, n - 1, window))
     beta = np.asarray(run["beta"], dtype=float)
@@ -99,16 +96,7 @@ def shooting_states(run: VehicleRun, models: list, forces: list, window: int) ->
     out = [np.zeros((n, 10)) for _ in models]
     with jax.enable_x64(True):
         solve = _compiled_solve(window + 1, dt, sub)
-        for i0 in range(0, len(models), BATCH):
-            ms, fs = list(models[i0:i0 + BATCH]), list(forces[i0:i0 + BATCH])
-            pad = BATCH - len(ms)
-            ms, fs = ms + [ms[-1]] * pad, fs + [fs[-1]] * pad
-            ps = [jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(m))
-                  for m in ms]
-            params = jax.tree_util.tree_map(lambda *x: jnp.stack(x), *ps)
-            values = np.stack([np.stack([np.asarray(f["f1"], float), np.asarray(f["f2"], float)], axis=1) for f in fs])
-            values = np.concatenate([values, np.repeat(values[:, -1:], window + 1, axis=1)], axis=1)
-            x = np.asarray(jax.vmap(lambda q: static_equilibrium(q, "force"))(params))
+        for i0, pad, ms, params, values, x in batches(models, forces, window + 1):
             restarts: list = []
             for w, s in enumerate(starts):
                 if w:
@@ -147,19 +135,15 @@ def _detrended(err: np.ndarray, window: int) -> np.ndarray:
     return out
 
 
-def spring_travel(ys: np.ndarray, p: dict) -> dict:
-    """The simulated spring compressions ``s1, s2`` (the data contract's) of force-mode states."""
-    sb = np.sin(ys[:, 3])
-    return {"s1": ys[:, 2] - ys[:, 0] - p["b"] * sb, "s2": ys[:, 2] - ys[:, 1] + p["a"] * sb}
-
-
 def channel_errors(run: VehicleRun, ys: np.ndarray, p: dict, window: int) -> dict:
     """RMS error of each measured motion channel against the windowed simulation: pitch and heave
     less their per-window straight line, spring travels as they are."""
+    from ...models._halfcar import spring_travel_np
+
     out = {"beta": float(np.sqrt(np.mean(_detrended(ys[:, 3] - run["beta"], window) ** 2)))}
     if run.has("z3"):
         out["z3"] = float(np.sqrt(np.mean(_detrended(ys[:, 2] - run["z3"], window) ** 2)))
-    travel = spring_travel(ys, p)
+    travel = spring_travel_np(ys, p["a"], p["b"])
     for ch in ("s1", "s2"):
         if run.has(ch):
             out[ch] = float(np.sqrt(np.mean((travel[ch] - run[ch]) ** 2)))
