@@ -104,6 +104,43 @@ def test_vibration_is_a_bound_and_does_not_hide_a_bias_and_a_reset_is_named():
     assert rep["gain"]["after"] < rep["gain"]["before"]
 
 
+def test_outliers_of_an_optical_reference_that_come_back_are_not_resets():
+    """A motion-capture reference at the gyro's rate whose marker fit jitters now and then (the
+    attitude off by 0.02-0.04 rad for 2-10 samples, then back): the outliers are left out of the fit
+    and said in a note, but they are no reset and raise no ``reference_inconsistent``; a true step
+    of the same size that stays is one."""
+    rng = np.random.default_rng(4111)
+    dt, T = 1 / 285.7, 40.0
+    t = np.arange(0.0, T, dt)
+    n = len(t)
+    w_true = np.column_stack([0.8 * np.sin(2 * np.pi * 0.3 * t), 0.5 * np.sin(2 * np.pi * 0.23 * t + 1.0),
+                              0.6 * np.sin(2 * np.pi * 0.17 * t + 2.0)])
+    bias = np.array([0.004, -0.0025, 0.003])
+    N = 1e-4
+    w_meas = w_true + bias + rng.normal(0.0, N / math.sqrt(dt), (n, 3))
+    q = Rotation.from_quat(_integrate(Rotation.identity(), w_true, dt)[:, [1, 2, 3, 0]])
+    err = np.zeros((n, 3))
+    for k, t0 in enumerate(np.arange(3.0, T - 2.0, 4.0)):
+        i = int(t0 / dt)
+        err[i : i + 2 + 2 * (k % 5), k % 3] = 0.02 + 0.005 * (k % 5)
+    noisy = Rotation.from_rotvec(err + rng.normal(0.0, 3e-4, (n, 3))) * q
+    q_ref = noisy.as_quat()[:, [3, 0, 1, 2]]
+    rep, _ = diagnose_attitude(_run(t, w_meas, q_ref))
+    check_report_finite(rep)
+    assert not _by(rep, "reference_inconsistent"), _by(rep, "reference_inconsistent")
+    notes = rep["observability"]["notes"]
+    assert any("outlier" in nt for nt in notes), notes
+    b = {f["channel"]: f for f in _by(rep, "gyro_bias")}
+    for c, ch in enumerate(("wx", "wy", "wz")):
+        assert ch in b and b[ch]["interval"][0] <= bias[c] <= b[ch]["interval"][1], rep["findings"]
+    # the same size of step that stays is a reset
+    step = Rotation.from_rotvec(np.where(t[:, None] >= 21.0, [0.03, 0.0, 0.0], 0.0))
+    q_ref2 = (step * noisy).as_quat()[:, [3, 0, 1, 2]]
+    rep2, _ = diagnose_attitude(_run(t, w_meas, q_ref2))
+    inc = _by(rep2, "reference_inconsistent")
+    assert any(f["axis"] == "x" and f["span_s"][0] - 0.5 <= 21.0 <= f["span_s"][1] + 0.5 for f in inc), inc
+
+
 def test_noise_is_an_estimate_where_the_reference_says_still():
     rng = np.random.default_rng(4103)
     dt, T = 0.005, 20.0

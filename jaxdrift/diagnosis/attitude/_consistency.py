@@ -18,10 +18,13 @@ reference, both as rates in the global frame:
   drift moves the discrepancy but not the reference, a true slow rotation moves the reference but
   not the discrepancy); when more than a third of the stretch's windows do, the whole stretch;
 - anywhere, an interval whose discrepancy jumps from its neighbours' median by more than
-  :data:`REF_JUMP` and 10 robust standard deviations is a jump of the reference (a reset).
+  :data:`REF_JUMP` and 10 robust standard deviations is a jump of the reference: a reset where the
+  attitude stays stepped, an outlier (kind ``"spike"``) where the discrepancy comes back within
+  :data:`SPIKE_SPAN` intervals (an optical marker's jitter: the reference's own heavy-tailed noise,
+  not an inconsistency).
 
-The flagged (interval, axis) cells are left out of the reference fit; the spans are reported
-as ``reference_inconsistent`` findings.
+The flagged (interval, axis) cells are left out of the reference fit; the spans other than spikes
+are reported as ``reference_inconsistent`` findings, the spikes in a note.
 """
 
 from __future__ import annotations
@@ -41,7 +44,7 @@ from .._diffnoise import mad_sigma
 from ._gyro import convention_terms
 
 __all__ = ["interval_rates", "consistency", "still_rows", "AXES",
-           "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "WINDOW_S"]
+           "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "SPIKE_SPAN", "WINDOW_S"]
 
 AXES = ("x", "y", "z")
 WINDOW_S = 0.5  # s: shortest window of reference intervals
@@ -49,6 +52,7 @@ STILL_GYRO = 0.05  # rad/s: a mean gyro rate below this (bias included) is "the 
 STILL_REF = 0.02  # rad/s: a reference rate below this is "the reference says the body does not move"
 REF_DEV = 0.005  # rad/s: a reference that turns this much faster than the gyro while still is inconsistent
 REF_JUMP = 0.05  # rad/s over one interval, and 10 robust standard deviations: a jump (reset)
+SPIKE_SPAN = 5  # intervals each side over which a jump that comes back is an outlier, not a reset
 
 
 def interval_rates(w, dt, q_ref, anchors, lam=0.0):
@@ -166,7 +170,23 @@ def _flag(gamma, rho, dti, t_start, t_end):
             if jump.any():
                 cells = jump | np.r_[jump[1:], False] | np.r_[False, jump[:-1]]
                 use[cells, c] = False
-                _add_spans(spans, cells, t_start, t_end, AXES[c], np.where(jump, np.abs(res), 0.0), "jumps")
+                # a reset steps the attitude and stays; an outlier of the reference (an optical
+                # marker's jitter, a sample late on a fast turn) comes back within a few intervals:
+                # the attitude discrepancy's median over SPIKE_SPAN intervals after the jump is less
+                # than half the jump away from its median over SPIKE_SPAN intervals before. Both are
+                # left out of the fit; only a step is a finding
+                step = res * dti
+                level = np.concatenate([[0.0], np.cumsum(step)])  # level[i] before interval i
+                back = np.zeros(n_int, bool)
+                for i in np.nonzero(jump)[0]:
+                    before = np.median(level[max(i - SPIKE_SPAN + 1, 0) : i + 1])
+                    after = np.median(level[i + 1 : i + 1 + SPIKE_SPAN])
+                    back[i] = abs(after - before) < 0.5 * abs(step[i])
+                rate = np.abs(res)
+                for kind, sel in (("jumps", jump & ~back), ("spike", jump & back)):
+                    if sel.any():
+                        near = sel | np.r_[sel[1:], False] | np.r_[False, sel[:-1]]
+                        _add_spans(spans, near, t_start, t_end, AXES[c], np.where(sel, rate, 0.0), kind)
     spans.sort(key=lambda s: (s["t0"], s["axis"]))
     return use, spans, still_int
 

@@ -249,6 +249,7 @@ def reference_step(s):
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
     valid = gap_mask(s.run, anchors)
     use, s.ref_spans, still_int = consistency(s.w, s.dt, q_ref, anchors, s.t, valid)
+    s.ref_spans, spikes = _split_spikes(s.ref_spans)
     use &= valid[:, None]
     s.still = still_rows(s.n, anchors, still_int)
     noise_kind_step(s)
@@ -264,7 +265,7 @@ def reference_step(s):
         if not np.array_equal(use2, use):
             s.notes.append(f"the reference was checked again in the gyro's fitted sampling convention (lam = "
                            f"{fmt(fit0['lam'])}): {len(s.ref_spans)} inconsistent span(s) before, {len(spans2)} after")
-            use, s.ref_spans = use2, spans2
+            use, (s.ref_spans, spikes) = use2, _split_spikes(spans2)
             fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     if s.noise_finding is not None and s.noise_finding["estimate_kind"] == "upper_bound" or not s.noise_found:
         # the weights came from a noise level that may hold true motion (vibration): the residuals
@@ -322,10 +323,19 @@ def reference_step(s):
                                      hold_scale=hold)
     infl = max(1.0, fit["chi2"] / fit["dof"])
     s.findings.extend(inconsistent_findings(s.ref_spans, use))
+    if spikes:
+        s.notes.append(f"{len(spikes)} outlier(s) of the reference (up to {fmt(max(sp['rate'] for sp in spikes))} rad/s "
+                       "off the gyro over one interval and back within a few: the reference's own noise, not a "
+                       "reset) left out of the gyro fit on their axis")
     _reference_findings(s, fit, infl, drift, seg_final, anchors, M)
     if infl > 1.5:
         s.notes.append(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
     _reference_attitude_error(s, ref_rows, fit["lam"])
+
+
+def _split_spikes(spans):
+    """(spans that are findings, spikes): the reference's outliers that come back are not findings."""
+    return [sp for sp in spans if sp["kind"] != "spike"], [sp for sp in spans if sp["kind"] == "spike"]
 
 
 def _bias_idx(fit, channels):
