@@ -591,6 +591,9 @@ def main(argv=None):
                          "and paired with a sensor effect) or the gain-drift design "
                          "(gen_vehicle.design_gain_drift: effect-free runs, a drifting force gain alone "
                          "and with an offset)")
+    ap.add_argument("--free-share", type=float, default=None,
+                    help="nonlinear design: the share of effect-free runs (default 0.4; 0 for a calibration "
+                         "sweep of the nonlinear causes' intervals)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--chunk", default="0/1", help="i/k: only the cases with index = i mod k")
     ap.add_argument("--report-only", action="store_true", help="summarise the cache, run nothing")
@@ -610,7 +613,8 @@ def main(argv=None):
     os.makedirs(a.out, exist_ok=True)
     sizing = SIZING[a.kind]
     cases = {"standard": gen.design, "nonlinear": getattr(gen, "design_nonlinear", None),
-             "gain_drift": getattr(gen, "design_gain_drift", None)}[design](a.n, a.seed)
+             "gain_drift": getattr(gen, "design_gain_drift", None)}[design]
+    cases = cases(a.n, a.seed) if a.free_share is None else cases(a.n, a.seed, free_share=a.free_share)
     i, k = (int(x) for x in a.chunk.split("/"))
     todo = [c for c in cases if c["index"] % k == i
             and not os.path.exists(os.path.join(cache, f"{c['index']:04d}.json"))]
