@@ -54,6 +54,10 @@ FORBIDDEN_THIRD_PARTY = {
 }
 
 
+#: layers that use the diagnosis through its public API only (no module whose name starts with _)
+PUBLIC_API_ONLY = {"campaign", "durability", "cli", "studies", "report"}
+
+
 def module_name(path: Path, root: Path = ROOT) -> str:
     rel = path.relative_to(root.parent).with_suffix("")
     parts = list(rel.parts)
@@ -174,6 +178,11 @@ def violations(root: Path = ROOT) -> list[str]:
                 problems.append(f"{mod} imports the top-level package {dep} (import the layer itself)")
             elif dl not in ALLOWED.get(layer, set()):
                 problems.append(f"{mod} ({layer}) imports {dep} ({dl})")
+        if layer in PUBLIC_API_ONLY:
+            for dep in sorted(graph[mod]):
+                if dep.startswith("jaxdrift.diagnosis.") and any(p.startswith("_") for p in dep.split(".")[2:]):
+                    problems.append(f"{mod} ({layer}) imports the diagnosis's private module {dep} "
+                                    "(import its public API, jaxdrift.diagnosis[.vehicle|.attitude])")
         for ext in sorted(external & FORBIDDEN_THIRD_PARTY.get(layer, set())):
             problems.append(f"{mod} ({layer}) imports {ext}")
     return problems
@@ -195,7 +204,14 @@ def test_checker_catches_a_broken_tree(tmp_path):
     (pkg / "solvers" / "_s.py").write_text("from ._t import g\ndef f():\n    pass\n")
     (pkg / "solvers" / "_t.py").write_text("from ._s import f\nfrom ..cli import main\n"
                                            "def g():\n" + "    x = 1\n" * 160)
+    (pkg / "diagnosis" / "vehicle").mkdir(parents=True)
+    (pkg / "diagnosis" / "__init__.py").write_text("")
+    (pkg / "diagnosis" / "vehicle" / "__init__.py").write_text("from ._causes import f as apply_causes\n")
+    (pkg / "diagnosis" / "vehicle" / "_causes.py").write_text("def f():\n    pass\n")
+    (pkg / "cli" / "_a.py").write_text("from ..diagnosis.vehicle._causes import f\nfrom ..diagnosis.vehicle import apply_causes\n")
     found = "\n".join(violations(pkg))
+    assert "cli._a (cli) imports the diagnosis's private module jaxdrift.diagnosis.vehicle._causes" in found
+    assert "imports the diagnosis's private module jaxdrift.diagnosis.vehicle (" not in found
     assert "models._m (models) imports jaxdrift.solvers._s (solvers)" in found
     assert "models._m (models) imports matplotlib" in found
     assert "import cycle" in found

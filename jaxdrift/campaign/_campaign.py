@@ -83,7 +83,7 @@ def _groups(specs, ok):
 
 def _joint(client, specs, results, names, model, model_given, progress, log):
     """The joint fit over the runs that were diagnosed; its result as plain JSON-able data."""
-    from ..diagnosis.vehicle._causes import PARAMETER_ERROR, _candidates
+    from ..diagnosis.vehicle import PARAMETER_ERROR, candidates as _candidates
     from ._joint import JointFit, _merge, consistency, sensor_causes_of
 
     ok = [i for i, r in enumerate(results) if r["status"] == "ok"]
@@ -103,7 +103,7 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     run_names = [names[i] for g in groups for i in g]
     p_of = [len(shared) + len(n) for n in fit.nuis]
     cons = consistency(shared, theta, state, JointFit.sigma2, run_names, p_of)
-    from ..diagnosis.vehicle._causes import _apply
+    from ..diagnosis.vehicle import apply_causes as _apply
 
     p_joint, _ = _apply(model, shared, theta)
     per_run = {}
@@ -128,7 +128,7 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
 
 def _findings(joint: dict, results) -> list[dict]:
     """The joint findings from the fit (estimate, covariance, consistency)."""
-    from ..diagnosis.vehicle._causes import PARAMETER_ERROR, Cause
+    from ..diagnosis.vehicle import PARAMETER_ERROR, Cause
     from ._joint import joint_findings
 
     ok = [r for r in results if r["status"] == "ok"]

@@ -17,7 +17,7 @@ import os
 
 import numpy as np
 
-from ..diagnosis.vehicle._causes import FORCE_NOISE
+from ..diagnosis.vehicle import FORCE_NOISE
 from ..durability._analysis import FORCES, QUANTILES
 from ._manifest import cache_key
 

@@ -29,8 +29,9 @@ import math
 import numpy as np
 import scipy.stats
 
-from ..diagnosis.vehicle._causes import (ALPHA, FORCE_CHANNELS, FORCE_OFFSET, PARAMETER_ERROR, SENSOR_KINDS,
-                                         Cause, _apply, _finding_for, _practical, _theta_bounds, kind_named)
+from ..diagnosis.vehicle import (ALPHA, FORCE_CHANNELS, FORCE_OFFSET, PARAMETER_ERROR, SENSOR_KINDS, Cause,
+                                 apply_causes as _apply, finding_for as _finding_for, practical_size as _practical,
+                                 theta_bounds as _theta_bounds, kind_named)
 from ._executor import map_tasks
 from ._tasks import blocks_task, reselect_task
 
@@ -313,7 +314,7 @@ def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: li
     mean is reported because the interval is the variance of that mean: the stacked value carries
     the resolution error of the few runs that dominate its weights. A parameter no run has its own
     estimate of keeps the stacked value with its sandwich error and the single-run floor."""
-    from ..diagnosis._intervals import joint_intervals
+    from ..diagnosis import joint_intervals
 
     cons = {c["parameter"]: c for c in consistency}
     findings = []

@@ -8,7 +8,7 @@ import os
 
 import numpy as np
 
-from ..diagnosis.vehicle._causes import FORCE_NOISE, PARAMETER_ERROR
+from ..diagnosis.vehicle import FORCE_NOISE, PARAMETER_ERROR
 from ..io._outputs import atomic_dir, write_json, write_text
 
 __all__ = ["OUTPUT_FILES", "write_campaign", "summary_markdown"]

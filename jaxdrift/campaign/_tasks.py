@@ -38,8 +38,8 @@ def load_spec(spec, model, model_given: bool):
 
 
 def _problem(spec, model: dict, model_given: bool):
-    from ..diagnosis.vehicle._problem import _Problem
-    from ..diagnosis.vehicle._residuals import ResidualPipeline
+    from ..diagnosis.vehicle import Problem as _Problem
+    from ..diagnosis.vehicle import ResidualPipeline
 
     key = (spec, tuple(sorted(model.items())))
     if key not in _PROBLEMS:
@@ -65,7 +65,7 @@ def diagnose_task(spec, *, model: dict, model_given: bool, model_desc: dict, cac
     """The single-run diagnosis of ``spec`` (its report, with provenance), or the reason it failed.
     A finished report is written to ``cache_file`` before the task returns."""
     _x64()
-    from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
+    from ..diagnosis.vehicle import diagnose_vehicle_run
     from ..io import provenance
 
     if cache_file is not None and os.path.isfile(cache_file):
@@ -123,8 +123,8 @@ def _fit_nuisance(probs, causes, theta, idx_n, iters: int = 5, scale=None):
     """Gauss-Newton (instrumental, as the single-run fit) over the nuisance entries ``idx_n`` of
     ``theta``, the shared entries held: one logger's sensor effects over its runs (each run's rows
     multiplied by its ``scale``)."""
-    from ..diagnosis.vehicle._causes import _clip_theta
-    from ..diagnosis.vehicle._problem import _proj
+    from ..diagnosis.vehicle import clip_theta as _clip_theta
+    from ..diagnosis.vehicle import projected_share as _proj
 
     theta = np.array(theta, dtype=float)
     if not idx_n:
@@ -202,9 +202,9 @@ def blocks_task(group, *, model: dict, model_given: bool, shared, theta_shared, 
 def _final(probs, model, causes, theta, idx_n, N, rs, ns) -> list[dict]:
     """Per run of the group: the corrections of the campaign's extended model, the sensor
     findings with their intervals (the shared parameters held at the joint estimate) and the gain."""
-    from ..diagnosis.vehicle._causes import _apply, _finding_for, _practical
+    from ..diagnosis.vehicle import apply_causes as _apply, finding_for as _finding_for, practical_size as _practical
     from ..io._corrections import NO_CORRECTION
-    from ..diagnosis.vehicle._report import residual_gain
+    from ..diagnosis.vehicle import residual_gain
 
     cov = np.zeros((len(idx_n), len(idx_n)))
     if idx_n:
@@ -235,10 +235,10 @@ def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict) ->
     """The run's sensor effects chosen again by the single-run selection, against the campaign's
     vehicle (the joint parameters): the vehicle's errors no longer stand in for sensor effects."""
     _x64()
-    from ..diagnosis.vehicle._causes import SENSOR_KINDS, _candidates
-    from ..diagnosis.vehicle._problem import _Problem
-    from ..diagnosis.vehicle._residuals import ResidualPipeline
-    from ..diagnosis.vehicle._select import _select
+    from ..diagnosis.vehicle import SENSOR_KINDS, candidates as _candidates
+    from ..diagnosis.vehicle import Problem as _Problem
+    from ..diagnosis.vehicle import ResidualPipeline
+    from ..diagnosis.vehicle import select_causes as _select
 
     run = load_spec(spec, model, model_given)
     pipe = ResidualPipeline(run)
@@ -261,7 +261,7 @@ def durability_task(spec, *, model: dict, model_given: bool, extended: dict, noi
     import jax
     import jax.numpy as jnp
 
-    from ..diagnosis.vehicle._causes import FORCE_NOISE
+    from ..diagnosis.vehicle import FORCE_NOISE
     from ..durability._analysis import FORCES, _nominal, durability_analysis, section_forces
     from ..durability._damage import pseudo_damage, rainflow_cycles
     from ..durability._variants import OUTPUT_COLUMNS

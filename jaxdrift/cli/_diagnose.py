@@ -100,7 +100,7 @@ def run_diagnose(args) -> int:
             raise UsageError(f"{args.run}: an attitude run (column wx) takes --sensors, not --model")
         if args.series:
             raise UsageError("--series: only for vehicle runs (the attitude report holds its signals' summary)")
-        from ..diagnosis.attitude._diagnose import analysed_part, sensor_positions
+        from ..diagnosis.attitude import analysed_part, sensor_positions
         from ..io._attitude_files import read_attitude_run
 
         run, part_warning = analysed_part(read_attitude_run(args.run, checks=True, **opts))
@@ -114,8 +114,8 @@ def run_diagnose(args) -> int:
         bar.update(1)
         model_desc = {"sensors": os.path.basename(args.sensors) if args.sensors else None}
         try:
-            from ..diagnosis.attitude._pipeline import diagnose_attitude
-            from ..diagnosis.attitude._report import write_plots
+            from ..diagnosis.attitude import diagnose_attitude
+            from ..diagnosis.attitude import write_plots
 
             report, plots = diagnose_attitude(run, positions)
             if args.html:
@@ -150,7 +150,7 @@ def run_diagnose(args) -> int:
         model_desc = ({"file": os.path.basename(args.model)} if args.model else {"default": DEFAULT_MODEL_LABEL})
         model_desc["parameters"] = model
         try:
-            from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
+            from ..diagnosis.vehicle import diagnose_vehicle_run
 
             log = _BarLog(bar)
             if args.plots:
@@ -163,7 +163,7 @@ def run_diagnose(args) -> int:
                 c.detail(line)
             bar.update(1)
             if args.series:
-                from ..diagnosis._series import vehicle_series
+                from ..diagnosis import vehicle_series
 
                 bar.set_postfix_str("series")
                 write_table(args.series, vehicle_series(run, model, report), "--series")

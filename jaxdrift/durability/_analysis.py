@@ -16,7 +16,7 @@ import numpy as np
 
 from ..ensemble._montecarlo import monte_carlo
 from ..errors import InputError
-from ..diagnosis.vehicle._causes import FORCE_NOISE
+from ..diagnosis.vehicle import FORCE_NOISE
 from ..io._corrections import NO_CORRECTION, Corrections
 from ..io._csvio import DEFAULT_MODEL, MODEL_KEYS, VehicleRun
 from ..io._outputs import sha256_file
@@ -284,7 +284,7 @@ def durability_analysis(run: VehicleRun, model=None, *, paths: int = 64, basquin
     p = _params_dict(model)
     started = datetime.datetime.now(datetime.timezone.utc)
     if report is None:
-        from ..diagnosis.vehicle._pipeline import diagnose_vehicle_run
+        from ..diagnosis.vehicle import diagnose_vehicle_run
 
         report = diagnose_vehicle_run(run, p)
     extended = report.get("extended_model") if report else None

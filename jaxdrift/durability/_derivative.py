@@ -45,7 +45,7 @@ import math
 import numpy as np
 from scipy import signal
 
-from ..diagnosis._diffnoise import robust_diff_sigma as _diff_sigma
+from ..diagnosis import robust_diff_sigma as _diff_sigma
 
 __all__ = ["derivative", "noise_from_differences", "noise_from_spectrum", "noise_level", "choose_cutoff", "lowpass", "filtered_derivatives",
            "CUTOFF_FACTOR", "ORDER", "NOISE_FLOOR_RAD"]

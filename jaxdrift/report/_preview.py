@@ -87,8 +87,8 @@ def _time_markers(tb: dict | None, t: np.ndarray) -> list[dict]:
 def vehicle_preview(run, model: dict, report: dict, bins: int = BINS) -> dict:
     """Measured against simulated pitch and heave (model as given and extended), the forces as
     measured and corrected, and each residual channel before/after the extension."""
-    from ..diagnosis._series import vehicle_series
-    from ..diagnosis.vehicle._residuals import ResidualPipeline
+    from ..diagnosis import vehicle_series
+    from ..diagnosis.vehicle import ResidualPipeline
     from ..io._corrections import NO_CORRECTION, Corrections
 
     t = np.asarray(run.t, float)

@@ -15,8 +15,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..diagnosis.vehicle._causes import (FORCE_DELAY, FORCE_GAIN_DRIFT, FORCE_NOISE, FORCE_OFFSET, FORCE_SCALE,
-                                         PARAMETER_ERROR)
+from ..diagnosis.vehicle import (FORCE_DELAY, FORCE_GAIN_DRIFT, FORCE_NOISE, FORCE_OFFSET, FORCE_SCALE,
+                                 PARAMETER_ERROR)
 from ..io._csvio import DEFAULT_MODEL
 
 __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES",

@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 from ._diagnose import (
+    analysed_part as analysed_part,
+    sensor_positions as sensor_positions,
     run_attitude_diagnosis as run_attitude_diagnosis,
     read_attitude_run as read_attitude_run,
     read_sensors as read_sensors,
@@ -11,4 +13,7 @@ from ._diagnose import (
     diagnose_attitude as diagnose_attitude,
 )
 
-__all__ = ['diagnose_attitude', 'estimate_white_noise', 'read_attitude_run', 'read_sensors', 'run_attitude_diagnosis']
+from ._report import write_plots as write_plots
+
+__all__ = ['analysed_part', 'diagnose_attitude', 'estimate_white_noise', 'read_attitude_run', 'read_sensors',
+           'run_attitude_diagnosis', 'sensor_positions', 'write_plots']

@@ -6,14 +6,41 @@ the measured motion), ``_causes`` (the candidates as parameters), ``_problem`` (
 noise response, fit), ``_select`` (which causes), ``_confirm`` (each correction must improve the
 model on the whole run and on each half), ``_extend`` (re-simulation of the extended model), ``_report`` and ``_plots``
 (the report), ``_pipeline`` (``diagnose_vehicle_run``).
+
+The names below are the vehicle diagnosis's public API: the command line, the campaign (its joint
+fit over runs re-uses the single-run problem, candidates and selection), durability and the
+studies import these, never a module of this package.
 """
 
 from __future__ import annotations
 
-from ._causes import Cause as Cause
-from ._pipeline import diagnose_vehicle_run as diagnose_vehicle_run
+from ._causes import (
+    ALPHA as ALPHA,
+    FORCE_CHANNELS as FORCE_CHANNELS,
+    FORCE_DELAY as FORCE_DELAY,
+    FORCE_GAIN_DRIFT as FORCE_GAIN_DRIFT,
+    FORCE_NOISE as FORCE_NOISE,
+    FORCE_OFFSET as FORCE_OFFSET,
+    FORCE_SCALE as FORCE_SCALE,
+    PARAMETER_ERROR as PARAMETER_ERROR,
+    SENSOR_KINDS as SENSOR_KINDS,
+    Cause as Cause,
+    kind_named as kind_named,
+    _apply as apply_causes,
+    _candidates as candidates,
+    _clip_theta as clip_theta,
+    _finding_for as finding_for,
+    _practical as practical_size,
+    _theta_bounds as theta_bounds,
+)
 from ._extend import DRIFT_THRESHOLD_RAD as DRIFT_THRESHOLD_RAD
-from ._report import SCHEMA as SCHEMA
+from ._pipeline import diagnose_vehicle_run as diagnose_vehicle_run
+from ._problem import _Problem as Problem, _proj as projected_share
+from ._report import SCHEMA as SCHEMA, residual_gain as residual_gain
 from ._residuals import ResidualPipeline as ResidualPipeline
+from ._select import _select as select_causes
 
-__all__ = ['Cause', 'DRIFT_THRESHOLD_RAD', 'ResidualPipeline', 'SCHEMA', 'diagnose_vehicle_run']
+__all__ = ['ALPHA', 'Cause', 'DRIFT_THRESHOLD_RAD', 'FORCE_CHANNELS', 'FORCE_DELAY', 'FORCE_GAIN_DRIFT', 'FORCE_NOISE',
+           'FORCE_OFFSET', 'FORCE_SCALE', 'PARAMETER_ERROR', 'Problem', 'ResidualPipeline', 'SCHEMA', 'SENSOR_KINDS',
+           'apply_causes', 'candidates', 'clip_theta', 'diagnose_vehicle_run', 'finding_for', 'kind_named',
+           'practical_size', 'projected_share', 'residual_gain', 'select_causes', 'theta_bounds']
