@@ -129,10 +129,21 @@ def test_duplicate_column(tmp_path, capsys, good_run):
 
 
 def test_non_increasing_time(tmp_path, capsys, good_run):
+    """A row that repeats the time stamp of the row before is spread to the next stamp and said
+    (line named); under --strict-time, and where stamps go backwards, the run is refused."""
     lines = _lines(good_run)
     # data row 50 is line 51; give it the time of the row before
     cells = lines[50].split(",")
     cells[0] = lines[49].split(",")[0]
+    lines[50] = ",".join(cells)
+    _rewrite(good_run, lines)
+    run = read_vehicle_run(good_run)
+    assert any("repeat the time stamp" in w and "line 51" in w for w in run.info["notes"]), run.info["notes"]
+    assert run.n == 400 and run.dt == pytest.approx(0.005)
+    rc, err, report = _run_cli(tmp_path, capsys, good_run, extra=["--strict-time"])
+    _assert_refused(rc, err, report, "run.csv", "line 51", "column t", "not strictly increasing")
+    # a stamp that goes backwards is refused in any mode
+    cells[0] = lines[48].split(",")[0]
     lines[50] = ",".join(cells)
     _rewrite(good_run, lines)
     rc, err, report = _run_cli(tmp_path, capsys, good_run)

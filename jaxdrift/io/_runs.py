@@ -149,6 +149,43 @@ def _check_order(cols: Columns, t: np.ndarray, kind: str) -> None:
                          f"(t = {float(t[i])!r} after {float(t[i - 1])!r})")
 
 
+#: the largest share of rows that may repeat the time stamp of the row before (a time column
+#: printed coarser than the sampling, a logger writing two samples in one tick); more is refused
+MAX_REPEATED_SHARE = 0.01
+
+
+def _spread_repeated(cols: Columns, t: np.ndarray, notes: list) -> np.ndarray:
+    """A few rows that repeat the time stamp of the row before (a motion-capture export whose
+    90.9 Hz samples are stamped to 0.01 s, a logger writing two samples in one tick) are spread
+    evenly between that stamp and the next different one, and said in a note naming the first
+    such line; the rows and their data are kept, and the run is resampled like any other uneven
+    time base. Stamps that go backwards, repeats in more than ``MAX_REPEATED_SHARE`` of the rows,
+    and any repeat under ``--strict-time`` are refused (the order check)."""
+    t = np.asarray(t, float)
+    d = np.diff(t)
+    rep = np.flatnonzero(d == 0) + 1
+    if not rep.size or np.any(d < 0) or rep.size > MAX_REPEATED_SHARE * len(t):
+        return t
+    t = t.copy()
+    step = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
+    i, n = 0, len(t)
+    starts = []
+    while i < n - 1:
+        if t[i + 1] != t[i]:
+            i += 1
+            continue
+        a = i
+        while i < n - 1 and t[i + 1] == t[a]:
+            i += 1
+        b = i + 1  # rows a..b-1 share one stamp
+        nxt = t[b] if b < n else t[a] + (b - a) * step
+        t[a:b] = t[a] + (nxt - t[a]) * np.arange(b - a) / (b - a)
+        starts.append(a)
+    notes.append(f"{file_label(cols.path)}: {rep.size} row(s) repeat the time stamp of the row before (first at "
+                 f"{cols.where(starts[0] + 1, 't')}); each was placed evenly between that stamp and the next")
+    return t
+
+
 def _step_tolerance(t: np.ndarray, quantum: float, fs: float | None) -> tuple[float, float]:
     """(nominal step, allowed deviation per step) of the strict check."""
     step = 1.0 / fs if fs else float(np.median(np.diff(t)))  # one odd step must not move it
@@ -409,6 +446,8 @@ def _time_base(cols: Columns, data: dict, q_t: float, fs, kind: str, strict: boo
                              f"--strict-time needs one time column (without it the run is resampled)")
         t_raw, cols = first, dataclasses.replace(cols, times={})
     if not cols.times:
+        if not strict:
+            t_raw = _spread_repeated(cols, t_raw, notes)
         _check_order(cols, t_raw, kind)
         if strict or _is_uniform(t_raw, q_t, fs):
             t, tnote = _check_time(cols, t_raw, q_t, fs, kind)

@@ -19,7 +19,10 @@ each with a 95 % interval from :data:`N_BLOCKS` time blocks (the spread of the b
 sqrt(blocks)). Both are applied (the reference re-stamped and turned into the gyro's frame) where
 they are significant (beyond :data:`Z_APPLY` standard errors) and beyond :data:`MIN_OFFSET_STEPS` of the gyro's
 step or :data:`MIN_ANGLE_DEG`; the report's ``run.reference_alignment`` says what was found and
-whether it was applied. A reference that hardly turns tells neither: nothing is applied then.
+whether it was applied. A reference that hardly turns tells neither: nothing is applied then. Where
+the rotation is not determined (a body turned about one axis) but a signed permutation of the
+axes fits the rates with less than half the identity's misfit (an IMU mounted with its x pointing
+back), that axis convention is applied and reported (``axis_convention``).
 """
 
 from __future__ import annotations
@@ -94,6 +97,43 @@ def _offset(t_grid, w, tm, wb, dt):
     return float(taus[k])
 
 
+#: an axis convention is applied where it fits the rates better than the identity in every one of
+#: the ``N_BLOCKS`` time blocks (a sign test: 1 chance in 2^10 for a convention that fits no better)
+#: and leaves at most this share of the identity's misfit over the run
+CONVENTION_SHARE = 0.9
+
+
+def _signed_permutations():
+    """The 24 rotations that map axes onto axes (signed permutation matrices of determinant 1)."""
+    out = []
+    for perm in ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)):
+        for signs in np.ndindex(2, 2, 2):
+            P = np.zeros((3, 3))
+            P[np.arange(3), perm] = [1 - 2 * x for x in signs]
+            if np.linalg.det(P) > 0:
+                out.append(P)
+    return out
+
+
+def _axis_convention(wg, wb):
+    """The signed permutation P (not the identity) with gyro rate = P x reference body rate that
+    fits the rates better than the identity in every time block and over the run leaves at most
+    ``CONVENTION_SHARE`` of its mean squared misfit; None where there is none. (A body turned about
+    one axis fixes the other two axes' signs only through their small rates: the misfit falls by a
+    third, not by half, but it falls everywhere.)"""
+    m = np.isfinite(wg).all(1) & np.isfinite(wb).all(1)
+    if m.sum() < 10 * N_BLOCKS:
+        return None
+    a, b = wg[m] - np.mean(wg[m], 0), wb[m] - np.mean(wb[m], 0)
+    cost = lambda P, i=slice(None): float(np.mean(np.sum((a[i] - b[i] @ P.T) ** 2, 1)))  # noqa: E731
+    best = min(_signed_permutations(), key=cost)
+    eye = np.eye(3)
+    if np.allclose(best, eye) or not cost(best) <= CONVENTION_SHARE * cost(eye):
+        return None
+    blocks = np.array_split(np.arange(len(a)), N_BLOCKS)
+    return best if all(cost(best, i) < cost(eye, i) for i in blocks) else None
+
+
 def _rotation(wg, wb):
     """R (3x3) and bias with wg = R wb + b, R the nearest rotation to the least-squares map."""
     m = np.isfinite(wg).all(1)
@@ -137,11 +177,21 @@ def alignment_step(s):
     z = 1.96
     use_tau = abs(tau) > Z_APPLY * tau_se and abs(tau) > MIN_OFFSET_STEPS * dt
     use_rot = angle > Z_APPLY * angle_se and math.degrees(angle) > MIN_ANGLE_DEG
+    convention = None
+    if not use_rot:
+        # a body turned about one axis (a pendulum) does not fix the whole rotation, but it does
+        # tell an axis convention (the IMU's x pointing back): the signed permutation that fits
+        P = _axis_convention(wg, wb)
+        if P is not None:
+            Rm, convention, use_rot = P, True, True
+            rv = Rotation.from_matrix(Rm).as_rotvec()
+            angle, angle_se = float(np.linalg.norm(rv)), 0.0
     s.alignment = {
         "clock_offset_s": tau, "clock_offset_interval_s": [tau - z * tau_se, tau + z * tau_se],
         "rotation_deg": math.degrees(angle),
         "rotation_interval_deg": [math.degrees(max(angle - z * angle_se, 0.0)), math.degrees(angle + z * angle_se)],
         "rotation_vector_rad": [float(v) for v in rv], "applied": {"clock_offset": bool(use_tau), "rotation": bool(use_rot)},
+        **({"axis_convention": [[int(round(x)) for x in row] for row in Rm]} if convention else {}),
         "what": "the reference's stamps late by clock_offset_s against the gyro's; gyro rate = R x reference body rate "
                 "(R a rotation of rotation_deg about rotation_vector_rad); intervals from "
                 f"{N_BLOCKS} time blocks",
