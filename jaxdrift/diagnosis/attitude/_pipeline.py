@@ -58,6 +58,7 @@ from ._common import (
     DRIFT_OFF_DEG,
     MIN_INTERVAL_ROWS,
     SCALE_FLOOR,
+    Z_COLOURED,
     Z_SIGNIFICANT,
     fmt,
 )
@@ -468,7 +469,8 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
             s.corrections[ch] = replace(s.corrections[ch], bias_drift=float(d["K"]))
         s.bias_se[c] = b0_half / z95
         s.bias_fit[ch] = (float(b0), float(b0_half))
-        if abs(b0) / _test_se(b0_se, b0_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(b0) > s.bias_floor:
+        if abs(b0) / _test_se(b0_se, b0_half / z95, infl, coloured) > (Z_COLOURED if coloured else Z_SIGNIFICANT) \
+                and abs(b0) > s.bias_floor:
             s.corrections[ch] = replace(s.corrections[ch], bias=float(b0))
             if c not in drift:
                 s.bias_path[:, c] = b0
