@@ -426,6 +426,18 @@ def real_corpus_table(root: Path) -> str:
     return _corpus_table(load(root, "docs/validation/real_corpus.json"))
 
 
+@block("heldout-corpus-table", "docs/validation/heldout_corpus.json")
+def heldout_corpus_table(root: Path) -> str:
+    """The first held-out recordings (``tests/data/heldout/SOURCES.toml``), as the corpus table."""
+    return _corpus_table(load(root, "docs/validation/heldout_corpus.json"))
+
+
+@block("heldout2-corpus-table", "docs/validation/heldout2_corpus.json")
+def heldout2_corpus_table(root: Path) -> str:
+    """The second held-out recordings (``tests/data/heldout2/SOURCES.toml``), as the corpus table."""
+    return _corpus_table(load(root, "docs/validation/heldout2_corpus.json"))
+
+
 # ---------------------------------------------------------------------------------------------
 # schemas: from the code's catalogue and from reports the code wrote
 # ---------------------------------------------------------------------------------------------
