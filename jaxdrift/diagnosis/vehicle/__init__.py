@@ -24,6 +24,7 @@ from ._causes import (
     FORCE_SCALE as FORCE_SCALE,
     PARAMETER_ERROR as PARAMETER_ERROR,
     SENSOR_KINDS as SENSOR_KINDS,
+    VEHICLE_CAUSES as VEHICLE_CAUSES,
     Cause as Cause,
     kind_named as kind_named,
     _apply as apply_causes,
@@ -34,6 +35,7 @@ from ._causes import (
     _theta_bounds as theta_bounds,
 )
 from ._extend import DRIFT_THRESHOLD_RAD as DRIFT_THRESHOLD_RAD
+from ._nonlinear import nonlinear_cause_names as nonlinear_cause_names
 from ._pipeline import diagnose_vehicle_run as diagnose_vehicle_run
 from ._problem import _Problem as Problem, _proj as projected_share
 from ._report import SCHEMA as SCHEMA, residual_gain as residual_gain
@@ -42,5 +44,13 @@ from ._select import _select as select_causes
 
 __all__ = ['ALPHA', 'Cause', 'DRIFT_THRESHOLD_RAD', 'FORCE_CHANNELS', 'FORCE_DELAY', 'FORCE_GAIN_DRIFT', 'FORCE_NOISE',
            'FORCE_OFFSET', 'FORCE_SCALE', 'PARAMETER_ERROR', 'Problem', 'ResidualPipeline', 'SCHEMA', 'SENSOR_KINDS',
-           'apply_causes', 'candidates', 'clip_theta', 'diagnose_vehicle_run', 'finding_for', 'kind_named',
-           'practical_size', 'projected_share', 'residual_gain', 'select_causes', 'theta_bounds']
+           'VEHICLE_CAUSES', 'apply_causes', 'candidates', 'cause_names', 'clip_theta', 'diagnose_vehicle_run',
+           'finding_for', 'kind_named', 'nonlinear_cause_names', 'practical_size', 'projected_share',
+           'residual_gain', 'select_causes', 'theta_bounds']
+
+
+def cause_names() -> tuple[str, ...]:
+    """Every cause the vehicle diagnosis can name, from its registries: the linear kinds
+    (``VEHICLE_CAUSES``) and the nonlinear ones (:func:`nonlinear_cause_names`). Generators, sweeps
+    and contract tests take their list from here."""
+    return (*(k.name for k in VEHICLE_CAUSES), *nonlinear_cause_names())

@@ -292,6 +292,16 @@ def catalogue() -> list[NonlinearCause]:
     return out
 
 
+def nonlinear_cause_names() -> tuple[str, ...]:
+    """The nonlinear causes the diagnosis can name: the nameable ones of :func:`catalogue` and tyre
+    lift-off (read from the forces)."""
+    names = []
+    for c in catalogue():
+        if c.nameable and c.name not in names:
+            names.append(c.name)
+    return (*names, TyreLiftOff.name)
+
+
 # ----------------------------------------------------------------------------- states, signatures
 def model_states(pipe, p: dict, corr: dict) -> States:
     """Spring travel and rate of the fitted model driven by the corrected forces (fine grid); the
