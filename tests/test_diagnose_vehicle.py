@@ -243,7 +243,7 @@ def test_cli_dispatches_attitude_runs(tmp_path, monkeypatch, capsys):
     run.write_text("t,wx,wy,wz\n" + rows + "\n")
     report = tmp_path / "r.json"
     calls = []
-    from jaxdrift.diagnosis.attitude import _pipeline
+    import jaxdrift.diagnosis.attitude as _pipeline
 
     def fake(run_dict, positions):
         calls.append((run_dict["path"], run_dict["w"].shape, positions))

@@ -42,7 +42,7 @@ def run_csv(tmp_path_factory):
 @pytest.fixture
 def no_compute(monkeypatch):
     """Fail the test if the vehicle diagnosis starts (outputs must be checked before)."""
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     def must_not_run(*a, **k):
         raise AssertionError("computation started before the outputs were checked")
@@ -112,7 +112,7 @@ def test_diagnose_unwritable_output_fails_before_computing(tmp_path, capsys, run
 
 
 def test_oserror_while_writing_is_exit_2_with_the_path(tmp_path, capsys, run_csv, monkeypatch):
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     monkeypatch.setattr(dv, "diagnose_vehicle_run", lambda run, model, plots, log=None: {"kind": "vehicle"})
     report = tmp_path / "r.json"
@@ -163,7 +163,7 @@ def test_report_provenance_and_series(tmp_path, capsys, run_csv, monkeypatch):
     offset = rep["extended_model"]["corrections"]["f2"]["offset"]
     np.testing.assert_allclose(np.asarray(s["f2_corrected"]), data[:, 2] - offset, rtol=1e-12, atol=1e-9)
     # CSV too, same columns (the diagnosis itself is not repeated: its report is replayed)
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     replay = {k: v for k, v in rep.items() if k != "provenance"}
     monkeypatch.setattr(dv, "diagnose_vehicle_run", lambda run, model, plots, log=None: dict(replay))
@@ -274,7 +274,7 @@ def test_warnings_are_one_line(capsys):
 
 
 def test_quiet_and_verbose(tmp_path, capsys, run_csv, monkeypatch):
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     def fake(run, model, plots, log=None):
         log.append("step 1: best force_offset[f2]")

@@ -65,7 +65,7 @@ UNIT_MISTAKES = [
 def test_unit_mistakes_exit_2_before_computing(tmp_path, capsys, monkeypatch, real_cols, case):
     name, change, needles, fix = case
     run = _csv(tmp_path / "run.csv", change(real_cols))
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     def must_not_run(*a, **k):
         raise AssertionError("computed despite an implausible run")
@@ -97,7 +97,7 @@ def test_plausible_run_passes_and_names_the_default_model(tmp_path, capsys, real
     run = _csv(tmp_path / "run.csv", real_cols)
     r = load_run(run)
     assert r.warnings == () and r.info["rate_hz"] == pytest.approx(200.0)
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     monkeypatch.setattr(dv, "diagnose_vehicle_run", lambda run, model, plots, log=None: {"kind": "vehicle"})
     rc, err, report = _cli(tmp_path, capsys, run)
@@ -312,7 +312,7 @@ def test_attitude_rounding_of_the_written_digits(tmp_path):
 def test_cli_reading_options_reach_the_reader(tmp_path, capsys, real_cols, monkeypatch):
     """--map/--units (CSV) and an MF4 file through `jaxdrift diagnose`: the diagnosis gets the SI
     run, the notes are shown, provenance.reading says how it was read."""
-    from jaxdrift.diagnosis.vehicle import _pipeline as dv
+    import jaxdrift.diagnosis.vehicle as dv
 
     seen = []
 
