@@ -167,6 +167,45 @@ def test_a_reference_whose_x_and_y_point_the_other_way_is_turned_by_an_axis_conv
     assert not _by(rep, "reference_inconsistent")
 
 
+def test_a_heading_only_reference_gives_the_vertical_bias_and_says_the_others_are_not_determined(tmp_path):
+    """A car turning on a road that rolls and pitches it a little, its GNSS course as the only
+    reference (a ``yaw`` column in degrees): the vertical gyro's bias is found inside its interval,
+    the other two are not determined because the reference is a heading only, no span about x or y
+    is called inconsistent, and the attitude error is the heading's."""
+    from jaxdrift.io import read_attitude_run
+
+    rng = np.random.default_rng(4113)
+    dt, T = 0.01, 180.0
+    t = np.arange(0.0, T, dt)
+    n = len(t)
+    w_true = np.column_stack([0.03 * np.sin(2 * np.pi * 0.9 * t), 0.02 * np.sin(2 * np.pi * 0.7 * t + 1.0),
+                              0.25 * np.sin(2 * np.pi * 0.03 * t) + 0.1 * np.sin(2 * np.pi * 0.11 * t)])
+    bias = np.array([0.004, -0.003, 0.002])
+    N = 3e-4
+    w_meas = w_true + bias + rng.normal(0.0, N / math.sqrt(dt), (n, 3))
+    q = Rotation.from_quat(_integrate(Rotation.identity(), w_true, dt)[:, [1, 2, 3, 0]])
+    yaw = np.degrees(q.as_euler("ZYX")[:, 0]) + rng.normal(0.0, 0.05, n)  # a GNSS course, 0.05 deg noise
+    yaw_col = np.full(n, np.nan)
+    yaw_col[::10] = yaw[::10]  # 10 Hz
+    path = tmp_path / "car.csv"
+    with open(path, "w") as fh:
+        fh.write("t,wx,wy,wz,yaw\n")
+        for k in range(n):
+            y = "" if np.isnan(yaw_col[k]) else f"{yaw_col[k]:.6f}"
+            fh.write(f"{t[k]:.4f},{w_meas[k, 0]:.7f},{w_meas[k, 1]:.7f},{w_meas[k, 2]:.7f},{y}\n")
+    run = read_attitude_run(str(path), units={"yaw": "deg"})
+    assert run["heading_only"] and any("heading-only" in nt for nt in run["info"]["notes"])
+    rep, _ = diagnose_attitude(run)
+    check_report_finite(rep)
+    b = {f["channel"]: f for f in _by(rep, "gyro_bias")}
+    assert "wz" in b and b["wz"]["interval"][0] <= bias[2] <= b["wz"]["interval"][1], rep["findings"]
+    assert "wx" not in b and "wy" not in b
+    nd = {(d["cause"], d["channel"]): d["reason"] for d in rep["not_determined"]}
+    assert "heading only" in nd[("gyro_bias", "wx")] and "heading only" in nd[("gyro_bias", "wy")], nd
+    assert all(f["axis"] == "z" for f in _by(rep, "reference_inconsistent"))
+    assert rep["gain"]["after"] < rep["gain"]["before"]
+
+
 def test_noise_is_an_estimate_where_the_reference_says_still():
     rng = np.random.default_rng(4103)
     dt, T = 0.005, 20.0

@@ -133,6 +133,30 @@ def _ros_bag(tmp: Path) -> None:
             wr.write(c, int(ti * 1e9), store.serialize_ros1(msg, "sensor_msgs/msg/Imu"))
 
 
+def _drive_mf4(tmp: Path) -> None:
+    """60 s of a car's CAN GNSS/IMU in MDF4: rates in deg/s at 100 Hz with a 0.1 deg/s bias on the
+    vertical axis, and the GNSS heading in degrees at 10 Hz on its own times."""
+    pytest.importorskip("asammdf")
+    from asammdf import MDF, Signal
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(33)
+    t = np.arange(0.0, 60.0, 0.01)
+    w = np.column_stack([0.02 * np.sin(2 * np.pi * 0.8 * t), 0.015 * np.sin(2 * np.pi * 0.6 * t),
+                         0.2 * np.sin(2 * np.pi * 0.05 * t)])
+    r = Rotation.identity()
+    yaw = [0.0]
+    for k in range(len(t) - 1):
+        r = r * Rotation.from_rotvec(w[k] * 0.01)
+        yaw.append(r.as_euler("ZYX")[0])
+    meas = np.degrees(w + np.array([0.0, 0.0, np.radians(0.1)]) + 2e-3 * rng.standard_normal(w.shape))
+    mdf = MDF(version="4.10")
+    mdf.append([Signal(meas[:, i], t, name=f"AngularRate{a}", unit="deg/s") for i, a in enumerate("XYZ")])
+    mdf.append([Signal(np.degrees(np.asarray(yaw))[::10], t[::10], name="Heading", unit="deg")])
+    mdf.save(tmp / "drive.mf4", overwrite=True)
+    mdf.close()
+
+
 def _campaign_inputs(tmp: Path) -> None:
     """Two 3 s runs of one vehicle (the independent generator), their model and a manifest."""
     from benchmarks.validation import gen_campaign as gc
@@ -165,6 +189,8 @@ def _substitute(cmd: str, tmp: Path) -> list[str]:
             shutil.copy(ROOT / "tests" / "data" / "ulog" / "sample.ulg", tmp / "flight.ulg")
         elif a == "run.bag" and not (tmp / "run.bag").exists():
             _ros_bag(tmp)
+        elif a == "drive.mf4" and not (tmp / a).exists():
+            _drive_mf4(tmp)
         elif a in ("logger.csv", "run.mf4", "model.json") and not (tmp / "logger.csv").exists():
             _vehicle_inputs(tmp)
             if a == "run.mf4" and not (tmp / "run.mf4").exists():

@@ -54,6 +54,8 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
       ``q_ref`` places each sample on the nearest grid row (NaN elsewhere).
     - ``w_recorded_t`` (k,) and ``w_recorded`` (k, 3): the rates as recorded, before resampling
       (where the three share their times; None for a run used as it is: then ``t``, ``w``);
+    - ``heading_only``: the reference is a heading alone (a ``yaw`` column without roll and pitch:
+      its quaternion is a rotation about the vertical; the diagnosis compares it about that axis only);
     - ``onboard_bias`` and ``events``: what a PX4 log says besides (:func:`jaxdrift.io._logs.ulog_context`:
       the flight controller's own gyro-bias estimate, gyro and estimator switches, attitude
       resets); None and [] for other formats.
@@ -110,7 +112,7 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
             "quantisation": _text_rounding(path, run.info, list(CHANNELS)),
             "acc_quantisation": _text_rounding(path, run.info, acc_cols),
             "warnings": run.warnings, "info": run.info, "time_base": run.time_base,
-            "q_ref_t": q_ref_t, "q_ref_q": q_ref_q,
+            "q_ref_t": q_ref_t, "q_ref_q": q_ref_q, "heading_only": bool(run.info.get("heading_only")),
             "w_recorded_t": run.references["w"][0] if "w" in run.references else None,
             "w_recorded": run.references["w"][1] if "w" in run.references else None}
 

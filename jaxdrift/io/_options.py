@@ -29,6 +29,7 @@ _QUANTITY = {
     "t": "time", "f1": "force", "f2": "force", "beta": "angle", "beta_rate": "rate",
     "z3": "length", "s1": "length", "s2": "length", "zeta1": "length", "zeta2": "length",
     "wx": "rate", "wy": "rate", "wz": "rate", "qw": "ratio", "qx": "ratio", "qy": "ratio", "qz": "ratio",
+    "roll": "angle", "pitch": "angle", "yaw": "angle",
 }
 _ACC = re.compile(r"^a\d+[xyz]$")
 

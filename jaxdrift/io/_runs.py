@@ -28,14 +28,17 @@ from ._table import Columns, _open_check, detect_format, file_label, read_column
 from ._timebase import uniform_time_base
 
 __all__ = ["VehicleRun", "AttitudeRun", "KINDS", "load_run", "VEHICLE_REQUIRED", "VEHICLE_OPTIONAL",
-           "ATTITUDE_REQUIRED", "ATTITUDE_OPTIONAL", "MIN_SAMPLES", "MIN_DURATION_S", "JITTER_TOL"]
+           "ATTITUDE_REQUIRED", "ATTITUDE_OPTIONAL", "EULER_COLUMNS", "MIN_SAMPLES", "MIN_DURATION_S", "JITTER_TOL"]
 
 VEHICLE_REQUIRED: tuple[str, ...] = ("t", "f1", "f2")
 VEHICLE_OPTIONAL: tuple[str, ...] = ("beta", "beta_rate", "z3", "s1", "s2", "zeta1", "zeta2")
 ATTITUDE_REQUIRED: tuple[str, ...] = ("t", "wx", "wy", "wz")
 ATTITUDE_OPTIONAL: tuple[str, ...] = ("qw", "qx", "qy", "qz")  # plus a1x, a1y, a1z, ...
+#: a reference as z-y-x Euler angles (yaw about the world's vertical, then pitch, then roll; body to
+#: world); yaw alone is a heading-only reference (a car's GNSS course or a compass)
+EULER_COLUMNS: tuple[str, ...] = ("roll", "pitch", "yaw")
 KINDS = {"vehicle": (VEHICLE_REQUIRED, VEHICLE_OPTIONAL), "durability": (VEHICLE_REQUIRED, VEHICLE_OPTIONAL),
-         "attitude": (ATTITUDE_REQUIRED, ATTITUDE_OPTIONAL)}
+         "attitude": (ATTITUDE_REQUIRED, ATTITUDE_OPTIONAL + EULER_COLUMNS)}
 
 #: A vehicle run needs at least this many samples and this duration to say anything about drift:
 #: the chassis modes of the seed's vehicle have time constants of about 0.1-1 s.
@@ -116,7 +119,9 @@ def _check_names(fname, header, kind) -> tuple[list[str], list[str]]:
             raise InputError(f"{fname}, line 1: missing required column {r!r}{did} "
                              f"(found: {', '.join(header)}; required: {', '.join(req)})")
     warnings, close, unused = [], [], []
-    known = list(req) + list(opt)
+    # Euler angles are a reference only by name or --map: a logger's 'Roll' or 'Pitch' channel is
+    # no misspelt column (and a heading-only run maps yaw alone)
+    known = [k for k in list(req) + list(opt) if k not in EULER_COLUMNS]
     for h in extras:
         hint = difflib.get_close_matches(h, known, n=1, cutoff=0.75)
         hint = hint or [k for k in known if k.lower() == h.lower()]
@@ -277,7 +282,60 @@ def _attitude_columns(fname, header) -> list[str]:
     if stray:
         raise InputError(f"{fname}, line 1: accelerometer column(s) {', '.join(stray)} out of sequence "
                          f"(a1x.. must be contiguous)")
-    return present + acc
+    euler = [c for c in EULER_COLUMNS if c in header]
+    if euler and present:
+        raise InputError(f"{fname}, line 1: the reference is given twice (qw..qz and {', '.join(euler)}); "
+                         f"give one of them")
+    if euler and "yaw" not in euler:
+        raise InputError(f"{fname}, line 1: a reference in Euler angles needs yaw (the heading); "
+                         f"{', '.join(euler)} alone do not make one")
+    return present + euler + acc
+
+
+def _euler_reference(fname: str, used: list, data: dict, cols: Columns, file_of: dict, notes: list) -> list:
+    """Euler-angle reference columns (z-y-x, radians after ``--units``) turned into qw..qz where
+    they stand, on the yaw's own times where channels keep their times (roll and pitch interpolated
+    onto them); a missing roll or pitch is 0 (a heading-only reference, said in a note). Returns
+    the used columns with qw..qz in place of the angles."""
+    from scipy.spatial.transform import Rotation
+
+    eul = [c for c in EULER_COLUMNS if c in used and c in data]
+    if "yaw" not in eul:
+        return used
+    yaw = np.asarray(data["yaw"], float)
+    t_yaw = cols.times.get("yaw") if cols.times else None
+
+    def on_yaw(c):
+        if c not in eul:
+            return np.zeros_like(yaw)
+        v = np.asarray(data[c], float)
+        if t_yaw is None:
+            return v
+        tc = cols.times[c]
+        ok = np.isfinite(v)
+        return np.interp(t_yaw, tc[ok], v[ok], left=np.nan, right=np.nan)
+
+    roll, pitch = on_yaw("roll"), on_yaw("pitch")
+    fin = np.isfinite(yaw) & np.isfinite(roll) & np.isfinite(pitch)
+    q = np.full((len(yaw), 4), np.nan)
+    if fin.any():
+        xyzw = Rotation.from_euler("ZYX", np.column_stack([yaw[fin], pitch[fin], roll[fin]])).as_quat()
+        q[fin] = xyzw[:, [3, 0, 1, 2]]
+    for i, c in enumerate(("qw", "qx", "qy", "qz")):
+        data[c] = q[:, i]
+        file_of[c] = f"{file_of['yaw']} (as {c})"
+        cols.empty[c] = cols.empty.get("yaw", -1)
+        if cols.times:
+            cols.times[c] = t_yaw
+    for c in eul:
+        data.pop(c, None)
+        if cols.times:
+            cols.times.pop(c, None)
+    heading = eul == ["yaw"]
+    notes.append(f"{fname}: the reference is given as Euler angles ({', '.join(file_of[c] for c in eul)}; z-y-x, body "
+                 "to world)" + ("; yaw alone: a heading-only reference, which tells rotation about the vertical "
+                                "only" if heading else ""))
+    return [c for c in used if c not in EULER_COLUMNS] + ["qw", "qx", "qy", "qz"]
 
 
 def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | None = None,  # noqa: A002
@@ -346,6 +404,9 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     cols.empty = {c: cols.empty.get(file_of[c], -1) for c in used}
     notes += list(cols.notes)
     converted, cols = _convert_units(fname, used, factors, cols, file_of, data, notes)
+    heading_only = kind == "attitude" and "yaw" in data and not ("roll" in data or "pitch" in data)
+    if kind == "attitude":
+        used = _euler_reference(fname, used, data, cols, file_of, notes)
     q_t = cols.quantum.get(file_of["t"], 0.0) * converted.get("t", 1.0)
     for c in used:
         if c in data:
@@ -377,7 +438,7 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
         t, data, refs, tb = _logger_faults(fname, t, data, refs, tb, notes)
     info = {"format": cols.fmt, "kind": kind, "columns": {c: file_of[c] for c in used},
             "units_converted": converted, "rate_hz": 1.0 / float((t[-1] - t[0]) / (len(t) - 1)),
-            "notes": notes, "forced": bool(problems),
+            "notes": notes, "forced": bool(problems), "heading_only": bool(heading_only),
             "quantum": {c: cols.quantum.get(file_of[c], 0.0) * converted.get(c, 1.0) for c in used},
             "printed_steps": {c: (cols.steps[file_of[c]][0] * converted.get(c, 1.0) ** 2, cols.steps[file_of[c]][1])
                               for c in used if file_of[c] in cols.steps},

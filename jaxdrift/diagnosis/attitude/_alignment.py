@@ -10,7 +10,7 @@ reference and the bias fit as noise.
 reference samples over their step, at the step's midpoint) and the gyro's:
 
 1. the **clock offset** tau (the reference's stamps late by tau): the lag that best matches the rate
-   magnitudes (the reference's rates over spans of :data:`SPAN_S`), which no frame rotation changes (a grid search over +-:data:`MAX_OFFSET_S` at a quarter
+   magnitudes (the reference's rates over spans of :data:`SPAN_S`), which no frame rotation changes (a grid search over +-:data:`MAX_OFFSET_S`, or half a reference step where that is longer, at a quarter
    of the gyro's step, refined by a parabola);
 2. the **frame rotation** R (gyro rate = R x reference body rate + bias): the linear least-squares map
    with a bias, projected on the nearest rotation (polar decomposition);
@@ -77,10 +77,10 @@ def _gyro_at(t_grid, w, t):
     return out
 
 
-def _offset(t_grid, w, tm, wb, dt):
-    """Clock offset minimising the rate magnitudes' mismatch."""
+def _offset(t_grid, w, tm, wb, dt, reach=MAX_OFFSET_S):
+    """Clock offset minimising the rate magnitudes' mismatch, searched over +-``reach``."""
     nb = np.linalg.norm(wb, axis=1)
-    taus = np.arange(-MAX_OFFSET_S, MAX_OFFSET_S + 1e-12, dt / 4.0)
+    taus = np.arange(-reach, reach + 1e-12, max(dt / 4.0, reach / 400.0))
 
     def cost(tau):
         g = np.linalg.norm(_gyro_at(t_grid, w, tm - tau), axis=1)
@@ -163,9 +163,12 @@ def alignment_step(s):
     tm, wb = _ref_rates(tq, q, span)
     if len(tm) < 10 * N_BLOCKS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
         return
-    tau = _offset(run["t"], s.w, tm, wb, dt)
+    # a GNSS heading at 1 Hz lags its gyro by a few tenths of a second: the search spans half a
+    # reference step at least
+    reach = max(MAX_OFFSET_S, 0.5 * float(np.median(np.diff(tq))))
+    tau = _offset(run["t"], s.w, tm, wb, dt, reach)
     blocks = np.array_split(np.arange(len(tm)), N_BLOCKS)
-    taus = np.array([_offset(run["t"], s.w, tm[b], wb[b], dt) for b in blocks])
+    taus = np.array([_offset(run["t"], s.w, tm[b], wb[b], dt, reach) for b in blocks])
     tau_se = float(np.std(taus, ddof=1) / math.sqrt(N_BLOCKS))
     wg = _gyro_at(run["t"], s.w, tm - tau)
     Rm = _rotation(wg, wb)
@@ -178,6 +181,10 @@ def alignment_step(s):
     use_tau = abs(tau) > Z_APPLY * tau_se and abs(tau) > MIN_OFFSET_STEPS * dt
     use_rot = angle > Z_APPLY * angle_se and math.degrees(angle) > MIN_ANGLE_DEG
     convention = None
+    if run.get("heading_only"):
+        # a heading tells no frame but the vertical's sense (a compass heading turns clockwise
+        # seen from above, a gyro's z may point up): the axis convention only
+        use_rot = False
     if not use_rot:
         # a body turned about one axis (a pendulum) does not fix the whole rotation, but it does
         # tell an axis convention (the IMU's x pointing back): the signed permutation that fits
