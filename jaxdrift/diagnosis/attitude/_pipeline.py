@@ -36,7 +36,6 @@ from ...models._quaternion import (
     quat_log_np,
     quat_multiply_np,
     rotation_angle_between_np,
-    rotation_matrix_np,
 )
 from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE
 from ._array import array_step
@@ -45,7 +44,11 @@ from ._realworld import (
     degenerate,
     finite_segments,
     gap_mask,
+    heading_error,
+    heading_only_cells,
     inconsistent_findings,
+    split_spikes,
+    vertical_axis,
     not_determined,
     noise_kind_step,
     residual_noise_scale,
@@ -251,13 +254,10 @@ def reference_step(s):
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
     valid = gap_mask(s.run, anchors)
     use, s.ref_spans, still_int = consistency(s.w, s.dt, q_ref, anchors, s.t, valid)
-    s.ref_spans, spikes = _split_spikes(s.ref_spans)
+    s.ref_spans, spikes = split_spikes(s.ref_spans)
     use &= valid[:, None]
     if s.run.get("heading_only"):
-        # a heading alone says nothing about the global x and y axes: left out everywhere, and no
-        # span about them is an inconsistency of the reference
-        use[:, :2] = False
-        s.ref_spans = [sp for sp in s.ref_spans if sp["axis"] == "z"]
+        use, s.ref_spans = heading_only_cells(use, s.ref_spans)
         s.notes.append("the reference is a heading only: compared with the gyro about the vertical alone")
     s.still = still_rows(s.n, anchors, still_int)
     noise_kind_step(s)
@@ -273,10 +273,9 @@ def reference_step(s):
         if not np.array_equal(use2, use):
             s.notes.append(f"the reference was checked again in the gyro's fitted sampling convention (lam = "
                            f"{fmt(fit0['lam'])}): {len(s.ref_spans)} inconsistent span(s) before, {len(spans2)} after")
-            use, (s.ref_spans, spikes) = use2, _split_spikes(spans2)
+            use, (s.ref_spans, spikes) = use2, split_spikes(spans2)
             if s.run.get("heading_only"):
-                use[:, :2] = False
-                s.ref_spans = [sp for sp in s.ref_spans if sp["axis"] == "z"]
+                use, s.ref_spans = heading_only_cells(use, s.ref_spans)
             fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     if s.noise_finding is not None and s.noise_finding["estimate_kind"] == "upper_bound" or not s.noise_found:
         # the weights came from a noise level that may hold true motion (vibration): the residuals
@@ -309,12 +308,8 @@ def reference_step(s):
     # sliver of information (the tilt's share): held at 0, and said so, instead of spreading its
     # uncertainty into the other channels
     held = {}
-    if s.run.get("heading_only"):
-        # a heading sees the gyro axis nearest the vertical; the other two only through the tilt's
-        # share, which is their only tie to that one's bias: they are held at 0
-        rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
-        vertical = int(np.argmax(np.mean(np.abs(rotation_matrix_np(q_ref[rows])[:, 2, :]), axis=0)))
-        held = {c: True for c in range(3) if c != vertical}
+    if s.run.get("heading_only"):  # the gyro axes off the vertical: seen only through the tilt
+        held = {c: True for c in range(3) if c != vertical_axis(q_ref)}
         fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
                              hold_bias=_bias_idx(fit0, held))
     elif not use.all():
@@ -350,21 +345,6 @@ def reference_step(s):
     if infl > 1.5:
         s.notes.append(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
     _reference_attitude_error(s, ref_rows, fit["lam"])
-
-
-def _heading(q):
-    """Yaw (z-y-x) of body-to-world quaternions, scalar first."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
-def _wrap(a):
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
-
-
-def _split_spikes(spans):
-    """(spans that are findings, spikes): the reference's outliers that come back are not findings."""
-    return [sp for sp in spans if sp["kind"] != "spike"], [sp for sp in spans if sp["kind"] == "spike"]
 
 
 def _bias_idx(fit, channels):
@@ -581,7 +561,7 @@ def _reference_attitude_error(s, ref_rows, lam):
             step = w0 + lam * dw
             qi = integrate_rates_np(q_ref[a0], step, dt)
             if s.run.get("heading_only"):  # the heading's error: the reference says nothing else
-                return np.abs(_wrap(_heading(qi[ok - a0]) - _heading(q_ref[ok])))
+                return heading_error(qi[ok - a0], q_ref[ok])
             return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
 
         e_before.append(err_of(w))

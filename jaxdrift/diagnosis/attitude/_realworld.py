@@ -20,12 +20,14 @@ import numpy as np
 from scipy import stats
 
 from ...io._timebase import longest_run
+from ...models._quaternion import rotation_matrix_np
 from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
 from ._noise import estimate_white_noise
 
 __all__ = ["noise_kind_step", "degenerate", "not_determined", "gap_mask", "residual_noise_scale",
-           "inconsistent_findings", "finite_segments", "STILL_MIN_S"]
+           "inconsistent_findings", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
+           "heading_error", "STILL_MIN_S"]
 
 STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estimate (and 256 rows)
 
@@ -156,3 +158,34 @@ def inconsistent_findings(spans, use):
              "evidence": what + f"; left out of the gyro fit on that axis ({int((~use).sum())} interval-axis cells in all)"}
         out.append((f, 1e9 - len(out)))
     return out
+
+
+def split_spikes(spans):
+    """(spans that are findings, spikes): the reference's outliers that come back are not findings."""
+    return [sp for sp in spans if sp["kind"] != "spike"], [sp for sp in spans if sp["kind"] == "spike"]
+
+
+def heading_only_cells(use, spans):
+    """A heading alone says nothing about the global x and y axes: their cells left out everywhere,
+    and no span about them is an inconsistency of the reference."""
+    use = use.copy()
+    use[:, :2] = False
+    return use, [sp for sp in spans if sp["axis"] == "z"]
+
+
+def vertical_axis(q_ref) -> int:
+    """The gyro axis nearest the vertical over the reference rows (body-to-world, scalar first)."""
+    rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
+    return int(np.argmax(np.mean(np.abs(rotation_matrix_np(q_ref[rows])[:, 2, :]), axis=0)))
+
+
+def _heading(q):
+    """Yaw (z-y-x) of body-to-world quaternions, scalar first."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
+
+
+def heading_error(qa, qb):
+    """|heading(qa) - heading(qb)|, wrapped to [0, pi]."""
+    d = _heading(qa) - _heading(qb)
+    return np.abs((d + np.pi) % (2.0 * np.pi) - np.pi)
