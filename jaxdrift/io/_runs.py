@@ -25,7 +25,7 @@ from ._plausible import plausibility_problems
 from ._logs import LOG_FORMATS
 from ._runs_time import REFERENCE_COLUMNS, _reference, apply_policy
 from ._table import Columns, _open_check, detect_format, file_label, read_columns, read_header_any
-from ._timebase import uniform_time_base
+from ._timebase import true_runs, uniform_time_base
 
 __all__ = ["VehicleRun", "AttitudeRun", "KINDS", "load_run", "VEHICLE_REQUIRED", "VEHICLE_OPTIONAL",
            "ATTITUDE_REQUIRED", "ATTITUDE_OPTIONAL", "EULER_COLUMNS", "MIN_SAMPLES", "MIN_DURATION_S", "JITTER_TOL"]
@@ -173,21 +173,13 @@ def _spread_repeated(cols: Columns, t: np.ndarray, notes: list) -> np.ndarray:
         return t
     t = t.copy()
     step = float(np.median(d[d > 0])) if np.any(d > 0) else 0.0
-    i, n = 0, len(t)
-    starts = []
-    while i < n - 1:
-        if t[i + 1] != t[i]:
-            i += 1
-            continue
-        a = i
-        while i < n - 1 and t[i + 1] == t[a]:
-            i += 1
-        b = i + 1  # rows a..b-1 share one stamp
+    n = len(t)
+    for a, b in true_runs(d == 0):
+        b += 1  # rows a..b-1 share one stamp
         nxt = t[b] if b < n else t[a] + (b - a) * step
         t[a:b] = t[a] + (nxt - t[a]) * np.arange(b - a) / (b - a)
-        starts.append(a)
     notes.append(f"{file_label(cols.path)}: {rep.size} row(s) repeat the time stamp of the row before (first at "
-                 f"{cols.where(starts[0] + 1, 't')}); each was placed evenly between that stamp and the next")
+                 f"{cols.where(int(rep[0]), 't')}); each was placed evenly between that stamp and the next")
     return t
 
 
@@ -296,12 +288,13 @@ def _euler_reference(fname: str, used: list, data: dict, cols: Columns, file_of:
     """Euler-angle reference columns (z-y-x, radians after ``--units``) turned into qw..qz where
     they stand, on the yaw's own times where channels keep their times (roll and pitch interpolated
     onto them); a missing roll or pitch is 0 (a heading-only reference, said in a note). Returns
-    the used columns with qw..qz in place of the angles."""
+    the used columns with qw..qz in place of the angles, and whether the reference is a heading
+    only."""
     from scipy.spatial.transform import Rotation
 
     eul = [c for c in EULER_COLUMNS if c in used and c in data]
     if "yaw" not in eul:
-        return used
+        return used, False
     yaw = np.asarray(data["yaw"], float)
     t_yaw = cols.times.get("yaw") if cols.times else None
 
@@ -335,7 +328,7 @@ def _euler_reference(fname: str, used: list, data: dict, cols: Columns, file_of:
     notes.append(f"{fname}: the reference is given as Euler angles ({', '.join(file_of[c] for c in eul)}; z-y-x, body "
                  "to world)" + ("; yaw alone: a heading-only reference, which tells rotation about the vertical "
                                 "only" if heading else ""))
-    return [c for c in used if c not in EULER_COLUMNS] + ["qw", "qx", "qy", "qz"]
+    return [c for c in used if c not in EULER_COLUMNS] + ["qw", "qx", "qy", "qz"], heading
 
 
 def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | None = None,  # noqa: A002
@@ -404,9 +397,9 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     cols.empty = {c: cols.empty.get(file_of[c], -1) for c in used}
     notes += list(cols.notes)
     converted, cols = _convert_units(fname, used, factors, cols, file_of, data, notes)
-    heading_only = kind == "attitude" and "yaw" in data and not ("roll" in data or "pitch" in data)
+    heading_only = False
     if kind == "attitude":
-        used = _euler_reference(fname, used, data, cols, file_of, notes)
+        used, heading_only = _euler_reference(fname, used, data, cols, file_of, notes)
     q_t = cols.quantum.get(file_of["t"], 0.0) * converted.get("t", 1.0)
     for c in used:
         if c in data:

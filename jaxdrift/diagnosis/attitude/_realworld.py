@@ -20,7 +20,7 @@ import numpy as np
 from scipy import stats
 
 from ...io._timebase import longest_run
-from ...models._quaternion import rotation_matrix_np
+from ...models._quaternion import quat_to_euler_np, rotation_matrix_np
 from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
 from ._noise import estimate_white_noise
@@ -179,13 +179,7 @@ def vertical_axis(q_ref) -> int:
     return int(np.argmax(np.mean(np.abs(rotation_matrix_np(q_ref[rows])[:, 2, :]), axis=0)))
 
 
-def _heading(q):
-    """Yaw (z-y-x) of body-to-world quaternions, scalar first."""
-    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    return np.arctan2(2.0 * (w * z + x * y), 1.0 - 2.0 * (y * y + z * z))
-
-
 def heading_error(qa, qb):
-    """|heading(qa) - heading(qb)|, wrapped to [0, pi]."""
-    d = _heading(qa) - _heading(qb)
+    """|heading(qa) - heading(qb)| (the z-y-x yaw of body-to-world quaternions), wrapped to [0, pi]."""
+    d = quat_to_euler_np(qa)[:, 2] - quat_to_euler_np(qb)[:, 2]
     return np.abs((d + np.pi) % (2.0 * np.pi) - np.pi)

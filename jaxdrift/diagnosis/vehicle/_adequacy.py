@@ -258,7 +258,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
             if c.sized_by_travel_profile:
                 c, th, se, st_c, th_iv = _stop_fit(prob, st, c, d)
             else:
-                th, se, st_c = _refine(prob, st, c, d, th, se)
+                th, se, st_c, _ = _refine(prob, st, c, d, th, se)
                 th_iv = (th - 1.96 * se, th + 1.96 * se)
             th = min(max(th, lo), hi)
             est = c.to_estimate(th, st)
@@ -312,11 +312,12 @@ def _refine(prob, st, c, d, th, se):
     as a stiff stop's loop gain is near one), the cause's signature at that travel, ``theta``
     refitted. A bump stop keeps the travel of the linear states (its definition). Where the axle's
     spring travel is measured the states already hold it and nothing is iterated. Returns
-    ``(theta, se, states)``."""
+    ``(theta, se, states, t)``: ``t`` the column's t statistic at those states, None where nothing
+    was iterated."""
     pipe, p = prob.pipe, st.p
     c.prepare(st)
     if pipe.has_s[c.axle]:  # the travel is measured (``model_states``): nothing to iterate
-        return th, se, st
+        return th, se, st, None
     fs = 1.0 / pipe.h
     n = len(st.u[0])
     u, v = [np.array(x) for x in st.u], [np.array(x) for x in st.v]
@@ -334,7 +335,7 @@ def _refine(prob, st, c, d, th, se):
             th = th_new
             break
         th = th_new
-    return th, se, cur
+    return th, se, cur, t
 
 
 #: the stop travels searched, as quantiles of the linear model's travel, and the steps of the search
@@ -355,10 +356,9 @@ def _stop_t(prob, st, d, axle: int, q: float) -> tuple:
     S = _column(prob, st.p, axle, cq.force(st), d["name"])[:, None]
     fs = 1.0 / prob.pipe.h
     t, th, se, *_ = _channel_test(d["y"], d["N"], S, fs, d["fc"])[0]
-    th, se, st_c = _refine(prob, st, cq, d, th, se)
-    if st_c is not st:  # the states moved: the column and its test at the fixed point
-        S = _column(prob, st.p, axle, cq.force(st_c), d["name"])[:, None]
-        t, th, se, *_ = _channel_test(d["y"], d["N"], S, fs, d["fc"])[0]
+    th, se, st_c, t_fixed = _refine(prob, st, cq, d, th, se)
+    if t_fixed is not None:  # the states moved: the test of the column at the fixed point
+        t = t_fixed
     return float(t), float(th), float(se), cq, st_c
 
 
