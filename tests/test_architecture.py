@@ -250,13 +250,6 @@ def test_seed_table_points_at_real_code():
 #: jaxdrift/ that sets ``x.attr`` sets it on ``self`` (or ``cls``) or on an object it created in the
 #: same function (``new = copy.copy(self); new.band = ...``).
 MUTATION_ALLOWED = {
-    # the attitude diagnosis fills its own working record, AttitudeState, step by step in a fixed
-    # order (docs/architecture.md, "Pure steps"): the one remaining state object
-    "diagnosis.attitude._pipeline": "AttitudeState, filled by the pipeline's steps",
-    "diagnosis.attitude._array": "AttitudeState, filled by the pipeline's steps",
-    "diagnosis.attitude._realworld": "AttitudeState, filled by the pipeline's steps",
-    "diagnosis.attitude._vibration": "AttitudeState, filled by the pipeline's steps",
-    "diagnosis.attitude._alignment": "AttitudeState, filled by the pipeline's steps",
     # process-wide hooks, set once by the command line or the package itself
     "cli._common": "warnings.showwarning and the interrupt handler: the command line's process hooks",
     "campaign": "the package module's class (a callable package)",
@@ -298,6 +291,100 @@ def mutations(root: Path = ROOT) -> list[str]:
 def test_no_step_mutates_another_object():
     found = [m for m in mutations() if m.split(":")[0] not in MUTATION_ALLOWED]
     assert not found, "a function sets attributes of an object it did not create:\n" + "\n".join(found)
+
+
+#: methods that change a list, dict or set in place
+IN_PLACE = {"append", "extend", "insert", "update", "pop", "popitem", "setdefault", "sort", "clear", "remove",
+            "add", "discard", "reverse"}
+
+#: Functions allowed to change, item by item, a dict, list or array they were given, and why.
+#: What is left is the vehicle side of #32 and the readers' assembly: each is named so that a new one
+#: fails the test.
+ITEM_MUTATION_ALLOWED = {
+    # the vehicle diagnosis's selection log, one list that the selection steps append to
+    **{f"diagnosis.vehicle._select:{f}": "the selection log (a list of lines) that the steps add to"
+       for f in ("_swap_pass", "_refine", "_forward", "_backward", "_parsimony", "_exact_confounding",
+                 "_tie_alternatives")},
+    "diagnosis.vehicle._select:_screen": "the candidates' signature columns, cached across the forward steps",
+    "diagnosis.vehicle._confirm:confirm_corrections": "the selection log",
+    "diagnosis.vehicle._confirm:confirm_by_resimulation": "the selection log",
+    "diagnosis.vehicle._pipeline:select_with_form": "the selection log",
+    "campaign._campaign:_diagnose_all": "the campaign's log",
+    "diagnosis.vehicle._adequacy:_named": "the extended model's nonlinear correction, filled finding by finding",
+    "diagnosis.vehicle._extend:resimulate": "the report's simulation_error and gain blocks, filled by the re-simulation",
+    "diagnosis.vehicle._pipeline:_stand_ins": "findings marked as linear stand-ins in the pipeline's own list",
+    "diagnosis.vehicle._residuals:_band_filter": "the residual channels filtered in their own dict",
+    # the readers assemble one run from columns, file by file
+    **{f"io._runs:{f}": "the reader's columns and notes, assembled file by file"
+       for f in ("_spread_repeated", "_euler_reference", "_logger_faults", "_convert_units", "_time_base")},
+    "io._ulog_fast:_walk_range": "the ULog scan's index arrays, filled while walking the file",
+}
+
+
+def _root_name(node):
+    while isinstance(node, (ast.Attribute, ast.Subscript)):
+        node = node.value
+    return node.id if isinstance(node, ast.Name) else None
+
+
+def item_mutations(root: Path = ROOT) -> list[str]:
+    """``module:line function: target`` for every item assignment (``p[k] = v``, ``p[k] += v``,
+    ``del p[k]``) and every in-place method call (``p.append(x)``, ``p.update(d)``, ...) on a
+    parameter of the function, or on something reached from one (``p.x[k] = v``), where the
+    function never rebinds that parameter (``p = dict(p)`` makes it its own)."""
+    out = []
+    for path in sorted(root.rglob("*.py")):
+        mod = ".".join(path.relative_to(root).with_suffix("").parts)
+        mod = mod[:-len(".__init__")] if mod.endswith(".__init__") else mod
+        tree = ast.parse(path.read_text())
+        for fn in ast.walk(tree):
+            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                continue
+            params = {a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs} - {"self", "cls"}
+            if fn.args.vararg is not None:
+                params.add(fn.args.vararg.arg)
+            rebound = set()
+            for node in ast.walk(fn):
+                tg = node.targets if isinstance(node, ast.Assign) else \
+                    [node.target] if isinstance(node, (ast.AnnAssign, ast.For)) else []
+                for t in tg:
+                    for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                        if isinstance(tt, ast.Name):
+                            rebound.add(tt.id)
+            given = params - rebound
+            for node in ast.walk(fn):
+                targets = node.targets if isinstance(node, (ast.Assign, ast.Delete)) else \
+                    [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
+                for t in targets:
+                    for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                        if isinstance(tt, ast.Subscript) and _root_name(tt) in given:
+                            out.append(f"{mod}:{tt.lineno} {fn.name}: {ast.unparse(tt)}")
+                if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                        and node.func.attr in IN_PLACE and _root_name(node.func.value) in given:
+                    out.append(f"{mod}:{node.lineno} {fn.name}: {ast.unparse(node)[:60]}")
+    return out
+
+
+def test_no_step_changes_what_it_was_given():
+    """No function changes, item by item or by an in-place method, a dict, list or array it was
+    given (a step returns a new record instead)."""
+    found = [m for m in item_mutations() if m.split(" ")[0].rsplit(":", 1)[0] + ":" + m.split(" ")[1].rstrip(":")
+             not in ITEM_MUTATION_ALLOWED]
+    assert not found, "a function changes what it was given:\n" + "\n".join(found)
+
+
+def test_item_mutation_checker_can_fail(tmp_path):
+    pkg = tmp_path / "jaxdrift" / "diagnosis"
+    pkg.mkdir(parents=True)
+    (pkg / "_x.py").write_text(
+        "def fill(report):\n    report['x'] = 1\n"
+        "def grow(findings, f):\n    findings.append(f)\n"
+        "def deep(s):\n    s.notes[0] += 'x'\n"
+        "def own(run):\n    run = dict(run)\n    run['x'] = 1\n    return run\n"
+        "def local():\n    out = []\n    out.append(1)\n    return out\n")
+    found = "\n".join(item_mutations(tmp_path / "jaxdrift"))
+    assert "fill: report['x']" in found and "grow: findings.append" in found and "deep: s.notes[0]" in found
+    assert "own" not in found and "local" not in found
 
 
 def test_mutation_checker_can_fail(tmp_path):

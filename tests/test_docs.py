@@ -114,7 +114,7 @@ def test_interval_level_counts_every_finding_with_an_interval():
                 {"cause": "force_offset", "estimate": 50.0, "interval": [48.0, 52.0]},
                 {"cause": "force_noise", "estimate": 15.0, "interval": [14.0, 16.0]},
                 {"cause": "model_form", "estimate": 3.0}]
-    joint_intervals(findings)
+    findings = joint_intervals(findings)
     assert [f.get("interval_level", {}).get("findings") for f in findings] == [3, 3, 3, None]
     src = inspect.getsource(_pipeline)
     assert src.index('findings = form["findings"] + findings') < src.index("joint_intervals(findings)")

@@ -13,7 +13,7 @@ from jaxdrift.diagnosis._intervals import joint_intervals
 def test_single_finding_keeps_its_95_interval():
     f = _finding_for(Cause("force_offset", "f1"), 10.0, 0.5)
     before = list(f["interval"])
-    joint_intervals([f])
+    (f,) = joint_intervals([f])
     assert f["interval"] == before
     assert "interval_level" not in f
     half = math.hypot(1.96 * 0.5, method_half("force_offset", 10.0))
@@ -24,7 +24,10 @@ def test_single_finding_keeps_its_95_interval():
 def test_joint_factor_is_sidak(k):
     fs = [_finding_for(Cause("force_delay", "f2"), 1e-3, 1e-4) for _ in range(k)]
     half0 = fs[0]["interval"][1] - fs[0]["estimate"]
-    joint_intervals(fs)
+    given = [dict(f) for f in fs]
+    fs_new = joint_intervals(fs)
+    assert fs == given  # the findings given are not changed
+    fs = fs_new
     z = scipy.stats.norm.ppf(1 - (1 - 0.95 ** (1 / k)) / 2)
     for f in fs:
         assert f["interval"][1] - f["estimate"] == pytest.approx(half0 * z / scipy.stats.norm.ppf(0.975), rel=1e-12)
@@ -37,7 +40,7 @@ def test_upper_bound_keeps_zero_and_alternatives_widen():
     f = _finding_for(Cause("force_offset", "f1"), 10.0, 0.5)
     f["indistinguishable_from"] = [{"cause": "force_offset", "channel": "f2", "estimate": -20.0,
                                     "interval": [-21.0, -19.0]}]
-    joint_intervals([f, noise])
+    f, noise = joint_intervals([f, noise])
     assert noise["interval"][0] == 0.0 and noise["interval"][1] > 2.5
     alt = f["indistinguishable_from"][0]["interval"]
     assert alt[0] < -21.0 and alt[1] > -19.0
@@ -63,7 +66,7 @@ def test_joint_coverage_monte_carlo():
         fs = [_finding_for(c, e, s) for c, e, s in zip(causes, est, se)]
         tv = [c.to_estimate(t) for c, t in zip(causes, truth)]
         marginal += all(f["interval"][0] <= t <= f["interval"][1] for f, t in zip(fs, tv))
-        joint_intervals(fs)
+        fs = joint_intervals(fs)
         joint += all(f["interval"][0] <= t <= f["interval"][1] for f, t in zip(fs, tv))
     band = 3 * math.sqrt(0.95 * 0.05 / n)
     assert abs(joint / n - 0.95) < band, joint / n
@@ -77,7 +80,7 @@ def test_vector_box_goes_to_the_joint_level_per_component():
     pos = {"cause": "sensor_position", "estimate": [0.0, 1.0, 2.0],
            "interval": [[-1.0, 0.0, 1.0], [1.0, 2.0, 3.0]]}
     scale = {"cause": "gyro_scale", "estimate": 1.0, "interval": [0.9, 1.1]}
-    joint_intervals([pos, scale])
+    pos, scale = joint_intervals([pos, scale])
     f = q(0.95 ** (1 / 6)) / q(0.95 ** (1 / 3))
     assert pos["interval"][1] == pytest.approx([f, 1 + f, 2 + f])
     assert scale["interval"][1] - 1.0 == pytest.approx(0.1 * q(0.95 ** 0.5) / q(0.95))

@@ -13,6 +13,13 @@ equal to 84de818's, and the series files equal but for the scale-corrected force
 x gain in place of / scale, at most 3.2e-16 of the column's RMS) and the extended model's simulated
 states (at most 2e-12): ``docs/validation/refactor-equality.json``.
 
+Found (2026-12-03): the attitude diagnosis as steps returning frozen records (``AttitudeState``
+removed) left 49 of 49 attitude reports equal to c763533's: 16 generated runs (``gen_attitude``
+design seed 20261301, 13 with an accelerometer array) and the 33 recordings of the three real
+corpora (ULog, ROS 1 bag, MDF4, motion-capture CSV; 30 with vibration, 13 with the reference
+aligned, 3 diagnosed in parts at a gyro switch, 3 by a static segment):
+``docs/validation/records-equality.json``, made by ``attitude_equality_runs.py``.
+
     PYTHONPATH=/path/to/old/checkout python benchmarks/validation/report_equality.py run RUNS old/
     python benchmarks/validation/report_equality.py run RUNS new/
     python benchmarks/validation/report_equality.py compare old/ new/ --json eq.json

@@ -244,7 +244,7 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
                                    "param_draws": param_draws}},
     }
     if write:
-        write_campaign(out, doc, results, names, figures=figures)
+        doc = write_campaign(out, doc, results, names, figures=figures)
     return doc
 
 

@@ -346,5 +346,4 @@ def joint_findings(shared, theta, cov, n_runs: int, named: dict, consistency: li
                          f"{c.to_estimate(th):.5g}, z = {z:.3g}; {nm} of the {n_runs} single-run diagnoses name it; "
                          f"the runs' own estimates scatter {math.sqrt(disp):.3g} x their single-run errors.")
         findings.append(f)
-    joint_intervals(findings)
-    return findings
+    return joint_intervals(findings)

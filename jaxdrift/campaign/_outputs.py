@@ -16,16 +16,19 @@ __all__ = ["OUTPUT_FILES", "write_campaign", "summary_markdown"]
 OUTPUT_FILES = ("campaign.json", "summary.md")
 
 
-def write_campaign(out: str, doc: dict, results, names, *, figures: bool = True) -> None:
+def write_campaign(out: str, doc: dict, results, names, *, figures: bool = True) -> dict:
+    """Write the campaign's folder (runs/, figures/, summary.md, campaign.json); returns the
+    document as written (with its ``figures``)."""
     with atomic_dir(os.path.join(out, "runs"), "--out") as tmp:
         for n, r in zip(names, results):
             if r["status"] == "ok":
                 write_json(os.path.join(tmp, f"{n}.json"), r["report"])
     if figures:
         with atomic_dir(os.path.join(out, "figures"), "--out") as tmp:
-            doc["figures"] = [f"figures/{n}" for n in write_figures(tmp, doc, results, names)]
+            doc = {**doc, "figures": [f"figures/{n}" for n in write_figures(tmp, doc, results, names)]}
     write_text(os.path.join(out, "summary.md"), summary_markdown(doc), "--out")
     write_json(os.path.join(out, "campaign.json"), doc, "--out")
+    return doc
 
 
 def _single_intervals(doc, results, names, param):

@@ -28,32 +28,36 @@ def _widen_side(lo, hi, est, factor):
     return float(lo), float(est + factor * (hi - est))
 
 
-def _widen(d: dict, k: int) -> None:
+def _widen(d: dict, k: int) -> dict:
+    """``d`` with its interval widened to the joint level of ``k`` findings (a new dict)."""
     iv, est = d.get("interval"), d.get("estimate")
     if iv is None or est is None:
-        return
+        return d
     if isinstance(est, (list, tuple)):
         m = len(est)
         factor = _quantile(JOINT_LEVEL ** (1.0 / (k * m))) / _quantile(JOINT_LEVEL ** (1.0 / m))
         sides = [_widen_side(lo, hi, e, factor) for lo, hi, e in zip(iv[0], iv[1], est)]
-        d["interval"] = [[s[0] for s in sides], [s[1] for s in sides]]
-    else:
-        factor = _quantile(JOINT_LEVEL ** (1.0 / k)) / _quantile(JOINT_LEVEL)
-        d["interval"] = list(_widen_side(iv[0], iv[1], est, factor))
+        return {**d, "interval": [[s[0] for s in sides], [s[1] for s in sides]]}
+    factor = _quantile(JOINT_LEVEL ** (1.0 / k)) / _quantile(JOINT_LEVEL)
+    return {**d, "interval": list(_widen_side(iv[0], iv[1], est, factor))}
 
 
-def joint_intervals(findings: list[dict]) -> None:
-    """Widen the findings' 95 % intervals in place so that they hold jointly (module doc), and
-    record it in each finding's ``interval_level``: ``{"joint": 0.95, "each": 0.95^(1/k),
-    "findings": k}``. Alternatives in ``indistinguishable_from`` are widened alike."""
+def joint_intervals(findings: list[dict]) -> list[dict]:
+    """The findings with their 95 % intervals widened so that they hold jointly (module doc), each
+    recording it in its ``interval_level``: ``{"joint": 0.95, "each": 0.95^(1/k), "findings": k}``.
+    Alternatives in ``indistinguishable_from`` are widened alike. New dicts; the list given is not
+    changed."""
     k = sum(1 for f in findings if f.get("interval") is not None and f.get("estimate") is not None)
     if k <= 1:
-        return
+        return list(findings)
+    out = []
     for f in findings:
         if f.get("interval") is None or f.get("estimate") is None:
+            out.append(f)
             continue
-        _widen(f, k)
-        for a in f.get("indistinguishable_from", []) or []:
-            _widen(a, k)
-        f["interval_level"] = {"joint": JOINT_LEVEL, "each": round(JOINT_LEVEL ** (1.0 / k), 5),
-                               "findings": k}
+        g = _widen(f, k)
+        if g.get("indistinguishable_from"):
+            g["indistinguishable_from"] = [_widen(a, k) for a in g["indistinguishable_from"]]
+        g["interval_level"] = {"joint": JOINT_LEVEL, "each": round(JOINT_LEVEL ** (1.0 / k), 5), "findings": k}
+        out.append(g)
+    return out

@@ -35,6 +35,7 @@ from scipy.spatial.transform import Rotation
 from ...io._timebase import place_nearest
 from ...models._quaternion import quat_conjugate_np, quat_log_np, quat_multiply_np
 from ._common import fmt
+from ._records import Alignment, Said
 
 __all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG", "MIN_MOTION_RAD_S"]
 
@@ -145,32 +146,30 @@ def _rotation(wg, wb):
     return U @ D @ Vt
 
 
-def alignment_step(s):
-    """Estimate (and where significant, apply) the reference's clock offset and frame rotation.
-    Sets ``s.alignment`` (the report's ``run.reference_alignment``) and may replace the reference
-    in ``s.run`` (a copy: the caller's run is not changed)."""
-    run = s.run
-    s.alignment = None
+def alignment_step(run) -> Alignment:
+    """Estimate (and where significant, apply) the reference's clock offset and frame rotation: the
+    :class:`._records.Alignment` (``alignment`` the report's ``run.reference_alignment``; ``run`` a
+    copy with the aligned reference where it was applied, else the run given)."""
     tq, q = run.get("q_ref_t"), run.get("q_ref_q")
     if tq is None:
         rows = np.nonzero(np.isfinite(run["q_ref"][:, 0]))[0]
         tq, q = run["t"][rows], run["q_ref"][rows]
     if len(tq) < 10 * N_BLOCKS:
-        return
-    dt = s.dt
+        return Alignment(None, run)
+    dt, w = run["dt"], run["w"]
     # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
     span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
     tm, wb = _ref_rates(tq, q, span)
     if len(tm) < 10 * N_BLOCKS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
-        return
+        return Alignment(None, run)
     # a GNSS heading at 1 Hz lags its gyro by a few tenths of a second: the search spans half a
     # reference step at least
     reach = max(MAX_OFFSET_S, 0.5 * float(np.median(np.diff(tq))))
-    tau = _offset(run["t"], s.w, tm, wb, dt, reach)
+    tau = _offset(run["t"], w, tm, wb, dt, reach)
     blocks = np.array_split(np.arange(len(tm)), N_BLOCKS)
-    taus = np.array([_offset(run["t"], s.w, tm[b], wb[b], dt, reach) for b in blocks])
+    taus = np.array([_offset(run["t"], w, tm[b], wb[b], dt, reach) for b in blocks])
     tau_se = float(np.std(taus, ddof=1) / math.sqrt(N_BLOCKS))
-    wg = _gyro_at(run["t"], s.w, tm - tau)
+    wg = _gyro_at(run["t"], w, tm - tau)
     Rm = _rotation(wg, wb)
     rv = Rotation.from_matrix(Rm).as_rotvec()
     rvs = np.array([Rotation.from_matrix(_rotation(wg[b], wb[b])).as_rotvec() for b in blocks])
@@ -193,7 +192,7 @@ def alignment_step(s):
             Rm, convention, use_rot = P, True, True
             rv = Rotation.from_matrix(Rm).as_rotvec()
             angle, angle_se = float(np.linalg.norm(rv)), 0.0
-    s.alignment = {
+    alignment = {
         "clock_offset_s": tau, "clock_offset_interval_s": [tau - z * tau_se, tau + z * tau_se],
         "rotation_deg": math.degrees(angle),
         "rotation_interval_deg": [math.degrees(max(angle - z * angle_se, 0.0)), math.degrees(angle + z * angle_se)],
@@ -204,20 +203,18 @@ def alignment_step(s):
                 f"{N_BLOCKS} time blocks",
     }
     if not (use_tau or use_rot):
-        return
+        return Alignment(alignment, run)
     tq2 = tq - tau if use_tau else tq
     q2 = q
     if use_rot:
         q2 = _wxyz((Rotation.from_quat(_xyzw(q)) * Rotation.from_matrix(Rm.T)).as_quat())
         q2 *= np.sign(q2[:, :1] + 1e-300)
-    valid = np.isfinite(s.w).all(1)
-    run = dict(run)
-    run["q_ref_t"], run["q_ref_q"] = tq2, q2
-    run["q_ref"] = place_nearest(run["t"], valid, tq2, q2, dt)
-    s.run = run
-    s.notes.append(
+    valid = np.isfinite(w).all(1)
+    aligned = {**run, "q_ref_t": tq2, "q_ref_q": q2, "q_ref": place_nearest(run["t"], valid, tq2, q2, dt)}
+    note = (
         "reference aligned with the gyro before it was judged: "
         + "; ".join(x for x in (
             f"its clock offset {fmt(tau * 1e3)} ms [{fmt((tau - z * tau_se) * 1e3)}, {fmt((tau + z * tau_se) * 1e3)}]" if use_tau else "",
             f"its frame turned by {fmt(math.degrees(angle))} deg [{fmt(math.degrees(max(angle - z * angle_se, 0)))}, "
             f"{fmt(math.degrees(angle + z * angle_se))}] into the gyro's" if use_rot else "") if x))
+    return Alignment(alignment, aligned, Said(notes=(note,)))

@@ -21,7 +21,8 @@ from scipy import stats
 from ...models._quaternion import skew_np
 from .._diffnoise import first_plateau, white_factor
 from ._causes import ACCEL_NOISE, GYRO_BIAS, NONRIGID, SENSOR_POSITION
-from ._common import CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, fmt
+from ._records import Comparison, Said
+from ._common import BIAS_FLOOR, CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, fmt
 
 __all__ = ["array_residual", "array_fit", "rigidity_rms", "gyro_noise_power", "white_rigidity_power", "array_step"]
 
@@ -278,23 +279,22 @@ def white_rigidity_power(resid, N, blocks, max_order: int = 8):
     return {"power": m, "se": se, "per_block": pb, "order": k, "plateau": plateau}
 
 
-def _accel_noise_finding(s, acc_var, acc_se, tq, wp, m_gn):
+def _accel_noise_finding(run, acc_var, acc_se, tq, wp, m_gn):
     """``accel_noise``: the white part of the rigidity residual beyond what the gyro noise explains,
-    reported where it is 3 standard errors above zero and above the rounding of the file's digits."""
-    floor = max(3.0 * s.run.get("acc_quantisation", 0.0), 1e-12)
+    reported where it is 3 standard errors above zero and above the rounding of the file's digits.
+    Returns ``(finding or None, note or None)``."""
+    floor = max(3.0 * run.get("acc_quantisation", 0.0), 1e-12)
     if not (wp["plateau"] and acc_var > 3.0 * acc_se and math.sqrt(max(acc_var, 0.0)) > floor):
         if not wp["plateau"]:
-            s.notes.append("the rigidity residual never became white under differencing: accelerometer noise not separable")
-        else:
-            s.notes.append(
-                f"no accelerometer noise found: the white part of the rigidity residual, {fmt(math.sqrt(wp['power']))} "
-                f"m/s^2 RMS per degree of freedom, is what the gyro noise explains ({fmt(math.sqrt(m_gn))}) or below "
-                "the rounding of the file")
-        return
+            return None, "the rigidity residual never became white under differencing: accelerometer noise not separable"
+        return None, (
+            f"no accelerometer noise found: the white part of the rigidity residual, {fmt(math.sqrt(wp['power']))} "
+            f"m/s^2 RMS per degree of freedom, is what the gyro noise explains ({fmt(math.sqrt(m_gn))}) or below "
+            "the rounding of the file")
     est = math.sqrt(acc_var)
     lo = math.sqrt(max(acc_var - tq * acc_se, 0.0))
     hi = math.sqrt(acc_var + tq * acc_se)
-    s.noise_findings.append({
+    return {
         "cause": ACCEL_NOISE.name, "estimate": est, "unit": ACCEL_NOISE.unit, "interval": [lo, hi],
         "evidence": (
             f"order-{wp['order']} differences of the array's rigidity residual are white with "
@@ -302,34 +302,54 @@ def _accel_noise_finding(s, acc_var, acc_se, tq, wp, m_gn):
             f"accounts for {fmt(math.sqrt(m_gn))}, the rest in quadrature is accelerometer noise of {fmt(est)} "
             "m/s^2 per axis"
         ),
-    })
+    }, None
 
 
 # --------------------------------------------------------------------------- pipeline step
 
 
-def array_step(s):
-    """Findings of the accelerometer array: displaced sensors, gyro biases (without another bias
-    source), and the rigidity residual beyond what the gyro noise explains."""
-    positions = s.positions
+def array_step(run, positions, noise, comp: Comparison) -> Comparison:
+    """Findings of the accelerometer array: displaced sensors, gyro biases (where no reference or
+    static segment gave them), and the rigidity residual beyond what the gyro noise explains. Returns
+    the comparison ``comp`` with the array's findings, corrections and measures added (its ``said``
+    the array's alone)."""
+    model = comp.model
     N = positions.shape[0]
-    fit_bias = s.bias_source is None
-    w_use = (s.w - s.bias_path) / s.scale
-    af = array_fit(s.run["acc"], positions, w_use, s.dt, s.sigma_axis, fit_bias=fit_bias)
-    s.observed.append(f"accelerometer array of {N} sensors (rigid-body residual, sensor positions)")
+    fit_bias = model.bias_source is None
+    w_use = (run["w"] - model.bias_path) / model.scale
+    af = array_fit(run["acc"], positions, w_use, run["dt"], noise.sigma_axis, fit_bias=fit_bias)
+    observed = [f"accelerometer array of {N} sensors (rigid-body residual, sensor positions)"]
     nb = len(af["blocks"])
     tq = stats.t.ppf(0.975, nb - 1)
     # a position correction is a 3-vector: its interval is the box whose three components hold the
     # truth together with 95 % probability (Sidak: each at 0.95^(1/3); per-component 95 % intervals
     # would hold all three in about 86 %)
     tq_box = stats.t.ppf(1.0 - (1.0 - 0.95 ** (1.0 / 3.0)) / 2.0, nb - 1)
-    floor = position_floor(af, s.run.get("acc_quantisation", 0.0))
-    c_up = upstream_cov(af, N, s.scale_se, s.bias_se)
+    floor = position_floor(af, run.get("acc_quantisation", 0.0))
+    c_up = upstream_cov(af, N, model.scale_se, model.bias_se)
     excluded, pos_found = _displaced_sensors(af, N, tq_box, floor, c_up)
-    pos_corr = _position_corrections(s, af, positions, excluded, pos_found, fit_bias)
+    pos_corr, resid_before = _position_corrections(af, positions, excluded, pos_found, fit_bias)
+    corrections = {**model.corrections, **{f"sensor{j + 1}": {"position": [float(v) for v in pos_corr[j]]}
+                                           for j in range(N)}}
+    findings = list(pos_found)
     if fit_bias:
-        _array_gyro_biases(s, af, N, tq)
-    _rigidity(s, af, positions, pos_corr, fit_bias, w_use)
+        biases, found = _array_gyro_biases(af, N, tq)
+        findings += found
+        bias_path = model.bias_path.copy()
+        for c, b in biases.items():
+            corrections[CHANNELS[c]] = replace(corrections[CHANNELS[c]], bias=b)
+            bias_path[:, c] = b
+        model = replace(model, bias_path=bias_path, bias_source="array")
+        observed.append("gyro biases through the array's centripetal terms")
+    model = replace(model, corrections=corrections)
+    rig = _rigidity(run, af, positions, pos_corr, fit_bias, w_use, model, noise.sigma_axis, resid_before)
+    findings += rig["findings"]
+    return replace(
+        comp, model=model, findings=comp.findings + tuple(findings),
+        noise_findings=comp.noise_findings + rig["noise_findings"],
+        sim_err={**comp.sim_err, "rigidity_residual": rig["sim_err"]},
+        gain=comp.gain if comp.gain is not None else rig["gain"], plots={**comp.plots, "array": rig["plot"]},
+        said=Said(notes=rig["notes"], observed=tuple(observed)))
 
 
 def _W_of(af):
@@ -437,56 +457,54 @@ def _displaced_sensors(af, N, tq, floor, c_up):
     return excluded, pos_found
 
 
-def _position_corrections(s, af, positions, excluded, pos_found, fit_bias):
-    """Report the displaced sensors; returns the position corrections (N, 3) of the reported ones
-    (the estimates reported, relative to the mean of the sensors not displaced)."""
+def _position_corrections(af, positions, excluded, pos_found, fit_bias):
+    """The position corrections (N, 3) of the displaced sensors reported (the estimates reported,
+    relative to the mean of the sensors not displaced), and the rigidity residual before them."""
     N = positions.shape[0]
     W_of = _W_of(af)
     b_arr = af["theta"][3 * N :] if fit_bias else np.zeros(3)
-    af["resid_before"] = array_residual(af["A"], positions, W_of(af["wbar"] - b_arr))
+    resid_before = array_residual(af["A"], positions, W_of(af["wbar"] - b_arr))
     pos_corr = np.zeros((N, 3))
-    s.findings.extend(pos_found)
     for j, (f, _) in zip(excluded, pos_found):
         pos_corr[j] = f["estimate"]
-    for j in range(N):
-        s.corrections[f"sensor{j + 1}"] = {"position": [float(v) for v in pos_corr[j]]}
-    return pos_corr
+    return pos_corr, resid_before
 
 
-def _array_gyro_biases(s, af, N, tq):
-    """Gyro biases through the centripetal terms (only when no reference or static segment gave them)."""
+def _array_gyro_biases(af, N, tq):
+    """Gyro biases through the centripetal terms (only when no reference or static segment gave
+    them): ``({axis: bias} of the significant ones, their findings)``."""
     th, cov = af["theta"], af["cov"]
+    biases, findings = {}, []
     for c in range(3):
         ch = CHANNELS[c]
         b = float(th[3 * N + c])
         se = math.sqrt(max(cov[3 * N + c, 3 * N + c], 0.0))
-        if se > 0 and abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
-            s.findings.append(GYRO_BIAS.finding(
+        if se > 0 and abs(b) / se > Z_SIGNIFICANT and abs(b) > BIAS_FLOOR:
+            findings.append(GYRO_BIAS.finding(
                 b, [float(b - tq * se), float(b + tq * se)],
                 f"the array's centripetal accelerations (M+ = omega~ omega~) match the gyro's {ch} only after "
                 f"removing {fmt(b)} rad/s (z = {fmt(abs(b) / se)})",
                 abs(b) / se, channel=ch))
-            s.corrections[ch] = replace(s.corrections[ch], bias=b)
-            s.bias_path[:, c] = b
-    s.bias_source = "array"
-    s.observed.append("gyro biases through the array's centripetal terms")
+            biases[c] = b
+    return biases, findings
 
 
-def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
+def _rigidity(run, af, positions, pos_corr, fit_bias, w_use, model, sigma_axis, resid_before):
     """Rigidity residual after the reported corrections, split into its white part (gyro noise
-    through ``W`` plus accelerometer noise: ``accel_noise``) and the rest (``nonrigid``)."""
+    through ``W`` plus accelerometer noise: ``accel_noise``) and the rest (``nonrigid``): a dict of
+    the findings, noise findings, notes, the simulation error, gain and figure."""
     N = positions.shape[0]
     blocks = af["blocks"]
     W_of = _W_of(af)
-    b_rep = np.array([s.corrections[c].bias if s.bias_source == "array" else 0.0 for c in CHANNELS])
+    b_rep = np.array([model.corrections[c].bias if model.bias_source == "array" else 0.0 for c in CHANNELS])
     resid_after = array_residual(af["A"], positions + pos_corr, W_of(af["wbar"] - b_rep))
     m2, _, nb2 = rigidity_rms(resid_after, N, blocks)
-    resid_raw = array_residual(af["A"], positions, W_of(af["wbar"])) if fit_bias else af["resid_before"]
+    resid_raw = array_residual(af["A"], positions, W_of(af["wbar"])) if fit_bias else resid_before
     m2raw, _, _ = rigidity_rms(resid_raw, N, blocks)
     # the part of the residual that the gyro noise alone explains (W from noisy rates), per sample
     r_fit = positions + pos_corr
     idx = af["idx"]
-    e_gn = gyro_noise_power(w_use[idx - 1] - b_rep, w_use[idx + 1] - b_rep, s.sigma_axis, r_fit)
+    e_gn = gyro_noise_power(w_use[idx - 1] - b_rep, w_use[idx + 1] - b_rep, sigma_axis, r_fit)
     wp = white_rigidity_power(resid_after, N, blocks)
     tq2 = stats.t.ppf(0.975, nb2 - 1)
     # per block: total power, white power, gyro-noise power; differences taken block by block
@@ -497,14 +515,15 @@ def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
     nr2_raw, nr_se = _mean_se(pb_total - wp["per_block"])
     nr2 = max(nr2_raw, 0.0)
     nr = math.sqrt(nr2)
-    s.sim_err["rigidity_residual"] = {
+    sim_err = {
         "rms": float(math.sqrt(m2raw)), "unit": "m/s^2",
         "what": "RMS per residual degree of freedom of the rigid-body fit of the array with the given positions",
         "rms_after_corrections": float(math.sqrt(m2)),
         "white_rms": float(math.sqrt(wp["power"])), "white_order": int(wp["order"]), "white_plateau": bool(wp["plateau"]),
         "gyro_noise_rms": float(math.sqrt(m_gn)),
     }
-    _accel_noise_finding(s, acc_var, acc_se, tq2, wp, m_gn)
+    acc_f, note = _accel_noise_finding(run, acc_var, acc_se, tq2, wp, m_gn)
+    findings = []
     if nr > NONRIGID_FLOOR and nr2 > 5.0 * nr_se:
         # statistical interval of the residual power, then the unidentifiable share: the part of a
         # deformation that looks like rigid motion is absorbed by the fit. The estimate assumes an
@@ -513,13 +532,15 @@ def _rigidity(s, af, positions, pos_corr, fit_bias, w_use):
         frac = (3 * N - 6) / (3 * N)
         lo = math.sqrt(max(nr2 - tq2 * nr_se, 0.0) * frac)
         hi = math.sqrt((nr2 + tq2 * nr_se) * (1.0 + 2.0 * (1.0 - frac)) / 1.0)
-        s.findings.append(NONRIGID.finding(
+        findings.append(NONRIGID.finding(
             nr, [lo, hi],
             f"after the reported corrections the array's accelerations depart from the best rigid-body motion "
             f"by {fmt(math.sqrt(m2))} m/s^2 RMS per degree of freedom, of which {fmt(math.sqrt(wp['power']))} is white "
             f"(noise); the rest, {fmt(nr)} m/s^2, is correlated in time (a deformation)",
             nr2 / max(nr_se, 1e-300), ))
-    if s.gain is None:
-        s.gain = {"metric": "rigidity_residual_rms", "before": float(math.sqrt(m2raw)), "after": float(math.sqrt(m2)), "unit": "m/s^2"}
-    s.plots["array"] = (s.t[af["idx"]], np.sqrt(np.sum(resid_raw**2, axis=(1, 2)) / (3 * N - 6)),
-                        np.sqrt(np.sum(resid_after**2, axis=(1, 2)) / (3 * N - 6)))
+    return {"findings": findings, "noise_findings": () if acc_f is None else (acc_f,),
+            "notes": () if note is None else (note,), "sim_err": sim_err,
+            "gain": {"metric": "rigidity_residual_rms", "before": float(math.sqrt(m2raw)), "after": float(math.sqrt(m2)),
+                     "unit": "m/s^2"},
+            "plot": (run["t"][af["idx"]], np.sqrt(np.sum(resid_raw**2, axis=(1, 2)) / (3 * N - 6)),
+                     np.sqrt(np.sum(resid_after**2, axis=(1, 2)) / (3 * N - 6)))}

@@ -157,7 +157,7 @@ def _flag(gamma, rho, dti, t_start, t_end):
                     bad[:] = True
                 cells = np.isin(win, np.arange(j, k)[bad])
                 use[cells, c] = False
-                _add_spans(spans, cells, t_start, t_end, AXES[c], float(np.max(np.abs(D[sl, c][bad] - np.median(D[sl, c])))),
+                spans += _spans_of(cells, t_start, t_end, AXES[c], float(np.max(np.abs(D[sl, c][bad] - np.median(D[sl, c])))),
                            "turns while the gyro says still")
         j = k
     # jumps (resets), moving or not
@@ -186,19 +186,22 @@ def _flag(gamma, rho, dti, t_start, t_end):
                 for kind, sel in (("jumps", jump & ~back), ("spike", jump & back)):
                     if sel.any():
                         near = sel | np.r_[sel[1:], False] | np.r_[False, sel[:-1]]
-                        _add_spans(spans, near, t_start, t_end, AXES[c], np.where(sel, rate, 0.0), kind)
+                        spans += _spans_of(near, t_start, t_end, AXES[c], np.where(sel, rate, 0.0), kind)
     spans.sort(key=lambda s: (s["t0"], s["axis"]))
     return use, spans, still_int
 
 
-def _add_spans(spans, cells, t_start, t_end, axis, rate, kind):
+def _spans_of(cells, t_start, t_end, axis, rate, kind):
+    """The spans ``{axis, t0, t1, rate, kind}`` of the runs of flagged ``cells``."""
     idx = np.nonzero(cells)[0]
     if not len(idx):
-        return
+        return []
     breaks = np.nonzero(np.diff(idx) > 1)[0]
+    out = []
     for a, b in zip(np.r_[0, breaks + 1], np.r_[breaks, len(idx) - 1]):
         r = float(np.max(rate[idx[a] : idx[b] + 1])) if np.ndim(rate) else float(rate)
-        spans.append({"axis": axis, "t0": float(t_start[idx[a]]), "t1": float(t_end[idx[b]]), "rate": r, "kind": kind})
+        out.append({"axis": axis, "t0": float(t_start[idx[a]]), "t1": float(t_end[idx[b]]), "rate": r, "kind": kind})
+    return out
 
 
 def still_rows(n, anchors, still_int):

@@ -34,17 +34,18 @@ AGREE_REL = 0.25
 
 
 def onboard_block(report, run, bias_fit, span):
-    """Set the flight controller's bias estimate beside jaxdrift's (see the module docstring)."""
+    """The report with the flight controller's bias estimate set beside jaxdrift's (see the module
+    docstring): a new dict, the report given where the log has no estimate."""
     ob = run.get("onboard_bias")
     if ob is None:
-        return
+        return report
     t, b = ob["t"], ob["b"]
     inside = (t >= span[0]) & (t <= span[1])
     late = inside & (t >= 0.5 * (span[0] + span[1]))
     use = late if late.sum() >= 2 else inside
     if not use.any():
-        report["onboard_bias"] = {"topic": ob["topic"], "axes": [], "note": "no onboard estimate inside the analysed span"}
-        return
+        return {**report, "onboard_bias": {"topic": ob["topic"], "axes": [],
+                                           "note": "no onboard estimate inside the analysed span"}}
     axes = []
     for c, ch in enumerate(CHANNELS):
         v = b[use, c]
@@ -59,17 +60,17 @@ def onboard_block(report, run, bias_fit, span):
         axes.append(entry)
     agree = [a["channel"] for a in axes if a["agree"]]
     differ = [a["channel"] for a in axes if a["agree"] is False]
-    report["onboard_bias"] = {
+    block = {
         "topic": ob["topic"], "samples": int(use.sum()), "device_ids": ob.get("device_ids", []),
         "span_s": [float(t[use][0]), float(t[use][-1])], "axes": axes,
         "summary": (f"the flight controller's own estimate agrees on {', '.join(agree) or 'no axis'}"
                     + (f" and differs on {', '.join(differ)}" if differ else "")),
     }
     by_ch = {a["channel"]: a for a in axes}
-    for f in report["findings"]:
-        if f.get("cause") == "gyro_bias" and f.get("channel") in by_ch:
-            a = by_ch[f["channel"]]
-            f["onboard"] = {"estimate": a["onboard"], "range": a["onboard_range"], "agree": a["agree"]}
+    findings = [{**f, "onboard": {"estimate": by_ch[f["channel"]]["onboard"], "range": by_ch[f["channel"]]["onboard_range"],
+                                  "agree": by_ch[f["channel"]]["agree"]}}
+                if f.get("cause") == "gyro_bias" and f.get("channel") in by_ch else f for f in report["findings"]]
+    return {**report, "findings": findings, "onboard_bias": block}
 
 
 def sensor_parts(run):

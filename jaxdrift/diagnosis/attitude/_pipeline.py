@@ -1,6 +1,7 @@
-"""The attitude diagnosis as a pipeline of named steps over one state (:class:`AttitudeState`).
+"""The attitude diagnosis as a pipeline of named steps, each returning a frozen record
+(:mod:`._records`).
 
-:func:`diagnose_attitude` runs, in this order:
+:func:`diagnose_records` runs, in this order:
 
 1. :func:`gyro_noise_step`: white gyro noise from high-order differences, and the floors below which
    an effect is the file's discretisation; :func:`._vibration.vibration_step`: vibration told apart
@@ -18,18 +19,18 @@
 4. :func:`allan_step`: Allan deviation of the best error series;
 5. :func:`jaxdrift.diagnosis.attitude._report.assemble_report`: ranking and the report dict.
 
-Each step reads and writes named fields of the state; the report is assembled from them only.
+Each step is a function of the records before it and returns a new one; no step changes what it
+was given. The report is assembled from the :class:`._records.Diagnosis` alone.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
 import numpy as np
 from scipy import stats
 
-from ...io._corrections import GyroCorrection
 from ...models._quaternion import (
     integrate_rates_np,
     quat_conjugate_np,
@@ -49,7 +50,6 @@ from ._realworld import (
     inconsistent_findings,
     split_spikes,
     vertical_axis,
-    not_determined,
     noise_kind_step,
     residual_noise_scale,
 )
@@ -71,9 +71,10 @@ from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit,
 from ._noise import allan, estimate_white_noise
 from ._alignment import alignment_step
 from ._vibration import vibration_step
+from ._records import Comparison, Diagnosis, GyroModel, GyroNoise, Said, Vibration
 from ._report import assemble_report
 
-__all__ = ["AttitudeState", "diagnose_attitude"]
+__all__ = ["diagnose_attitude", "diagnose_records"]
 
 
 #: a fitted sampling convention further than this from "held" (0) has the reference checked again in it
@@ -82,67 +83,6 @@ LAM_RECHECK = 0.2
 #: the diagnosis takes a run split by gaps whole and analyses its segments jointly (integration
 #: restarts at each segment; the reference intervals across a gap are left out)
 SEGMENTS_JOINT = True
-
-
-@dataclass
-class AttitudeState:
-    """What the steps know about one run; filled in step by step."""
-
-    run: dict
-    positions: object = None
-    notes: list = field(default_factory=list)
-    observed: list = field(default_factory=list)
-    not_observed: list = field(default_factory=list)
-    not_determined: list = field(default_factory=list)  # [{cause, channel, reason}]
-    ref_spans: list = field(default_factory=list)  # reference inconsistent: [{axis, t0, t1, rate, kind}]
-    still: np.ndarray | None = None  # rows where the reference says the body does not move
-    held_bias: dict = field(default_factory=dict)  # channels whose bias the reference cannot see
-    segments: list = field(default_factory=list)  # [i0, i1) row ranges with finite rates (between gaps)
-    findings: list = field(default_factory=list)  # (finding, z)
-    plots: dict = field(default_factory=dict)
-    # gyro noise (gyro_noise_step)
-    wn: dict | None = None
-    floor: float = 0.0
-    noise_found: bool = False
-    sigma_axis: np.ndarray | None = None
-    noise_var_rate: float = 0.0
-    noise_finding: dict | None = None
-    noise_findings: list = field(default_factory=list)  # further noise findings (vibration, accel_noise), after gyro_noise
-    vibration: dict | None = None  # vibration_step: spans, level per axis, peaks
-    alignment: dict | None = None  # alignment_step: the reference's clock offset and frame rotation
-    scale_se: np.ndarray = field(default_factory=lambda: np.zeros(3))  # of the applied corrections
-    bias_se: np.ndarray = field(default_factory=lambda: np.zeros(3))
-    scale_floor: float = 0.0
-    bias_floor: float = 0.0
-    drift_floor: float = 0.0
-    # the corrected gyro model, shared by the later steps
-    corrections: dict = field(default_factory=dict)
-    bias_path: np.ndarray | None = None
-    scale: np.ndarray | None = None
-    bias_source: str | None = None
-    allan_series: np.ndarray | None = None
-    allan_label: str | None = None
-    allan: dict | None = None
-    sim_err: dict = field(default_factory=dict)
-    gain: dict | None = None
-    n_ref: int = 0
-    bias_fit: dict = field(default_factory=dict)  # channel -> (estimate, 95 % half-width), named or not
-
-    @property
-    def t(self):
-        return self.run["t"]
-
-    @property
-    def dt(self):
-        return self.run["dt"]
-
-    @property
-    def w(self):
-        return self.run["w"]
-
-    @property
-    def n(self):
-        return len(self.run["t"])
 
 
 def diagnose_attitude(run, positions=None):
@@ -160,46 +100,51 @@ def diagnose_attitude(run, positions=None):
     parts, dropped = sensor_parts(run)
     done = []
     for sub, label in ([(run, None)] if parts is None else [(slice_run(run, i0, i1), lb) for i0, i1, lb in parts]):
-        s = _diagnose_state(sub, positions)
-        rep = assemble_report(s)
+        d = diagnose_records(sub, positions)
         span = (float(sub["t"][0]), float(sub["t"][-1]))
-        onboard_block(rep, sub, s.bias_fit, span)
-        done.append((rep, s.plots, label, span))
+        rep = onboard_block(assemble_report(d), sub, d.comparison.model.bias_fit, span)
+        done.append((rep, d.plots, label, span))
     if parts is None:
-        done[0][0]["run"]["events"] = run.get("events") or []
-        return done[0][:2]
+        return {**done[0][0], "run": {**done[0][0]["run"], "events": run.get("events") or []}}, done[0][1]
     return merge_parts(done, run, dropped)
 
 
-def _diagnose_state(run, positions=None):
-    """The pipeline on one sensor's run: the filled state."""
-    s = AttitudeState(run=run, positions=positions)
-    gyro_noise_step(s)
-    vibration_step(s)
+def diagnose_records(run, positions=None) -> Diagnosis:
+    """The steps on one sensor's run, in order; each returns a record (:mod:`._records`)."""
+    noise, said = gyro_noise_step(run)
+    noise, vib, said_vib = vibration_step(run, noise)
+    said = said + said_vib
     q_ref = run["q_ref"]
-    s.n_ref = 0 if q_ref is None else int(np.sum(np.isfinite(q_ref[:, 0])))
-    if s.n_ref >= 2:
-        alignment_step(s)
-        reference_step(s)
+    n_ref = 0 if q_ref is None else int(np.sum(np.isfinite(q_ref[:, 0])))
+    alignment = None
+    if n_ref >= 2:
+        al = alignment_step(run)
+        run, alignment, said = al.run, al.alignment, said + al.said
+        comp, noise = reference_step(run, n_ref, noise, vib)
     else:
-        noise_kind_step(s)
-        static_segment_step(s)
+        noise = noise_kind_step(run, noise, None, vib)
+        comp = static_segment_step(run, n_ref, noise)
+    said = said + comp.said
     if positions is not None:
-        array_step(s)
+        comp = array_step(run, positions, noise, comp)
+        said = said + comp.said
     else:
-        s.not_observed.append("sensor positions and rigidity (no accelerometer array)")
-    if s.bias_source is None:
-        s.not_observed.append("gyro bias (no reference attitude, no static segment, no accelerometer array)")
-        s.not_observed.append("gyro scale and bias drift (need a reference attitude)")
-    allan_step(s)
-    return s
+        said = said + Said(not_observed=("sensor positions and rigidity (no accelerometer array)",))
+    if comp.model.bias_source is None:
+        said = said + Said(not_observed=(
+            "gyro bias (no reference attitude, no static segment, no accelerometer array)",
+            "gyro scale and bias drift (need a reference attitude)"))
+    allan_, noise = allan_step(run, noise, comp)
+    return Diagnosis(run=run, positions=positions, n_ref=n_ref, noise=noise, vibration=vib, alignment=alignment,
+                     comparison=comp, allan=allan_, said=said)
 
 
-def gyro_noise_step(s):
-    """White gyro noise N from the rates' high-order differences; floors for the systematic effects."""
-    run, dt, w = s.run, s.dt, s.w
-    s.segments = finite_segments(run)
-    i0, i1 = max(s.segments, key=lambda r: r[1] - r[0])
+def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
+    """White gyro noise N from the rates' high-order differences; the floor below which a level is
+    the file's rounding."""
+    dt, w = run["dt"], run["w"]
+    segments = tuple(finite_segments(run))
+    i0, i1 = max(segments, key=lambda r: r[1] - r[0])
     wn = estimate_white_noise(w[i0:i1], dt)  # on the longest segment: differences never span a gap
     var_pooled = float(np.mean(wn["var"]))
     var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
@@ -210,7 +155,8 @@ def gyro_noise_step(s):
     noise_found = wn["plateau"] and math.sqrt(var_pooled) > floor
     sigma_axis = wn["sigma"] if noise_found else np.zeros(3)
     N_hat = math.sqrt(var_pooled * dt) if noise_found else 0.0
-    s.noise_var_rate = max(var_pooled * dt, (floor**2) * dt, 1e-24)  # N^2 for weights
+    var_rate = max(var_pooled * dt, (floor**2) * dt, 1e-24)  # N^2 for weights
+    notes = ()
     if noise_found:
         z95 = stats.norm.ppf(0.975)
         # the statistical half-width and the motion's possible share at the chosen order
@@ -218,7 +164,7 @@ def gyro_noise_step(s):
         half = math.hypot(z95 * var_se, float(np.mean(wn["var_method"])))
         lo = math.sqrt(max(var_pooled - half, 0.0) * dt)
         hi = math.sqrt((var_pooled + half) * dt)
-        s.noise_finding = {
+        finding = {
             "cause": GYRO_NOISE.name, "estimate": N_hat, "unit": GYRO_NOISE.unit, "interval": [lo, hi],
             "evidence": (
                 f"order-{wn['order']} differences of the rates are white with per-sample std "
@@ -227,90 +173,89 @@ def gyro_noise_step(s):
             ),
         }
     else:
-        s.noise_finding = None
-        s.notes.append(
-            "no white gyro noise above the rounding of the file"
-            if wn["plateau"] else "rate differences never became white: noise not separable from the motion"
-        )
-    s.wn, s.floor, s.noise_found, s.sigma_axis = wn, floor, noise_found, sigma_axis
-    s.scale_floor, s.bias_floor, s.drift_floor = SCALE_FLOOR, BIAS_FLOOR, DRIFT_FLOOR
-    s.corrections = {c: GyroCorrection() for c in CHANNELS}
-    s.bias_path = np.zeros((s.n, 3))
-    s.scale = np.ones(3)
+        finding = None
+        notes = ("no white gyro noise above the rounding of the file"
+                 if wn["plateau"] else "rate differences never became white: noise not separable from the motion",)
+    return GyroNoise(segments, wn, floor, bool(noise_found), sigma_axis, var_rate, finding), Said(notes=notes)
 
 
 # --------------------------------------------------------------------------- reference attitude
 
 
-def reference_step(s):
-    """Biases, scales and bias drift from two or more reference rows; attitude error and gain."""
-    q_ref = s.run["q_ref"]
+def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple[Comparison, GyroNoise]:
+    """Biases, scales and bias drift from two or more reference rows; attitude error and gain. Also
+    the gyro noise as the reference tells it (:func:`._realworld.noise_kind_step`)."""
+    t, dt, w, n = run["t"], run["dt"], run["w"], len(run["t"])
+    q_ref = run["q_ref"]
+    notes, observed, not_observed = [], [], []
+    findings = []
     ref_rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
     anchors = _anchors(ref_rows)
     n_int = len(anchors) - 1
-    T_ref = (anchors[-1] - anchors[0]) * s.dt
+    T_ref = (anchors[-1] - anchors[0]) * dt
     M = int(np.clip(min(n_int // 10, T_ref / 2.0), 1, 16))  # bias segments (drift test)
     int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
-    valid = gap_mask(s.run, anchors)
-    use, s.ref_spans, still_int = consistency(s.w, s.dt, q_ref, anchors, s.t, valid)
-    s.ref_spans, spikes = split_spikes(s.ref_spans)
+    valid = gap_mask(run, anchors)
+    use, ref_spans, still_int = consistency(w, dt, q_ref, anchors, t, valid)
+    ref_spans, spikes = split_spikes(ref_spans)
     use &= valid[:, None]
-    if s.run.get("heading_only"):
-        use, s.ref_spans = heading_only_cells(use, s.ref_spans)
-        s.notes.append("the reference is a heading only: compared with the gyro about the vertical alone")
-    s.still = still_rows(s.n, anchors, still_int)
-    noise_kind_step(s)
-    sample_var = s.sigma_axis**2
-    fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    if run.get("heading_only"):
+        use, ref_spans = heading_only_cells(use, ref_spans)
+        notes.append("the reference is a heading only: compared with the gyro about the vertical alone")
+    still = still_rows(n, anchors, still_int)
+    noise = noise_kind_step(run, noise, still, vib)
+    var_rate = noise.var_rate
+    sample_var = noise.sigma_axis**2
+    fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     if abs(fit0["lam"]) > LAM_RECHECK:
         # the gyro's samples follow another convention than a rate held over the step after each
         # (a motion-capture IMU's samples are the rate at their stamps): at a fast turn's angular
         # acceleration the held one lags by half a step and reads as jumps of the reference. The
         # check again, in the fitted convention
-        use2, spans2, _ = consistency(s.w, s.dt, q_ref, anchors, s.t, valid, lam=fit0["lam"])
+        use2, spans2, _ = consistency(w, dt, q_ref, anchors, t, valid, lam=fit0["lam"])
         use2 &= valid[:, None]
         if not np.array_equal(use2, use):
-            s.notes.append(f"the reference was checked again in the gyro's fitted sampling convention (lam = "
-                           f"{fmt(fit0['lam'])}): {len(s.ref_spans)} inconsistent span(s) before, {len(spans2)} after")
-            use, (s.ref_spans, spikes) = use2, split_spikes(spans2)
-            if s.run.get("heading_only"):
-                use, s.ref_spans = heading_only_cells(use, s.ref_spans)
-            fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
-    if s.noise_finding is not None and s.noise_finding["estimate_kind"] == "upper_bound" or not s.noise_found:
+            notes.append(f"the reference was checked again in the gyro's fitted sampling convention (lam = "
+                         f"{fmt(fit0['lam'])}): {len(ref_spans)} inconsistent span(s) before, {len(spans2)} after")
+            use, (ref_spans, spikes) = use2, split_spikes(spans2)
+            if run.get("heading_only"):
+                use, ref_spans = heading_only_cells(use, ref_spans)
+            fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    if noise.finding is not None and noise.finding["estimate_kind"] == "upper_bound" or not noise.found:
         # the weights came from a noise level that may hold true motion (vibration): the residuals
         # between reference rows say how large the noise is in the band the fit uses
         r = residual_noise_scale(fit0)
         if r < 1.0:
-            s.noise_var_rate *= r
+            var_rate *= r
             sample_var = sample_var * r
-            fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+            fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     r = residual_noise_scale(fit0)
-    if s.vibration is not None:
+    if vib is not None:
         # vibration averages out between reference rows: the intervals carry what their residuals
         # show, not the white noise of the quiet spans (the per-sample level stays that noise)
-        s.noise_var_rate *= r
-        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+        var_rate *= r
+        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
         r = residual_noise_scale(fit0)
     if r > 1.5 and np.any(sample_var > 0):
         # the interval errors are r times (in variance) what white noise of the differences' level
         # gives (a low-pass filtered gyro: its differences see less noise than its integral carries):
         # the scales' errors-in-variables correction takes the level the intervals show
         sample_var = sample_var * r
-        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     # a scale on a null direction of the fit (a body that does not turn about that axis: the scale
     # and the bias say the same) is held at 1, so that the bias is judged on its own
     sc0 = fit0["offs"][-1]
     hold = tuple(c for c in range(3) if sc0 + c in degenerate(fit0))
     if hold:
-        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold)
+        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold)
     # with axes of the reference left out, a bias about an axis that is nearly the left-out one keeps a
     # sliver of information (the tilt's share): held at 0, and said so, instead of spreading its
     # uncertainty into the other channels
     held = {}
-    if s.run.get("heading_only"):  # the gyro axes off the vertical: seen only through the tilt
+    if run.get("heading_only"):  # the gyro axes off the vertical: seen only through the tilt
         held = {c: True for c in range(3) if c != vertical_axis(q_ref)}
-        fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
+        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
                              hold_bias=_bias_idx(fit0, held))
     elif not use.all():
         for i in sorted(degenerate(fit0, tol=1e-3, share=0.5)):
@@ -318,33 +263,35 @@ def reference_step(s):
             if c < 3:
                 held[c] = True
         if held:
-            fit0 = reference_fit(s.run, s.noise_var_rate, [int_seg] * 3, anchors, sample_var, use=use,
+            fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, hold_bias=_bias_idx(fit0, held))
-    s.held_bias = held
-    s.bias_source = "reference"
-    s.observed.append(f"reference attitude on {s.n_ref} rows ({n_int} intervals used)")
+    observed.append(f"reference attitude on {n_ref} rows ({n_int} intervals used)")
     if M >= 4:
-        drift = _drift_tests(s, fit0, anchors, int_seg, M, use)
+        drift = _drift_tests(dt, fit0, anchors, int_seg, M, use)
     else:
         drift = {}
-        s.not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
+        not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
     seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
-    fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
+    fit = reference_fit(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
     if held:
-        fit = reference_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
+        fit = reference_fit(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
                             hold_bias=_bias_idx(fit, held))
-    fit["half_rate"] = half_rate_fit(s.run, s.noise_var_rate, seg_final, anchors, sample_var, use=use,
+    fit["half_rate"] = half_rate_fit(run, var_rate, seg_final, anchors, sample_var, use=use,
                                      hold_scale=hold)
     infl = max(1.0, fit["chi2"] / fit["dof"])
-    s.findings.extend(inconsistent_findings(s.ref_spans, use))
+    findings.extend(inconsistent_findings(ref_spans, use))
     if spikes:
-        s.notes.append(f"{len(spikes)} outlier(s) of the reference (up to {fmt(max(sp['rate'] for sp in spikes))} rad/s "
+        notes.append(f"{len(spikes)} outlier(s) of the reference (up to {fmt(max(sp['rate'] for sp in spikes))} rad/s "
                        "off the gyro over one interval and back within a few: the reference's own noise, not a "
                        "reset) left out of the gyro fit on their axis")
-    _reference_findings(s, fit, infl, drift, seg_final, anchors, M)
+    model, found, said = _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vib is not None, ref_spans, held)
+    findings.extend(found)
     if infl > 1.5:
-        s.notes.append(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals widened by that factor")
-    _reference_attitude_error(s, ref_rows, fit["lam"])
+        said = said + Said(notes=(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals "
+                                  "widened by that factor",))
+    comp = _reference_attitude_error(run, noise.segments, ref_spans, model, n_ref, ref_rows, fit["lam"])
+    said = Said(tuple(notes), tuple(observed), tuple(not_observed)) + said + comp.said
+    return replace(comp, findings=tuple(findings), said=said), replace(noise, var_rate=var_rate)
 
 
 def _bias_idx(fit, channels):
@@ -363,12 +310,12 @@ def _anchors(ref_rows):
     return np.unique(np.concatenate([ref_rows[np.searchsorted(ref_rows, grid)], ref_rows[-1:]]))
 
 
-def _drift_tests(s, fit0, anchors, int_seg, M, use):
+def _drift_tests(dt, fit0, anchors, int_seg, M, use):
     """REML test of a bias random walk on the M segment biases of each channel: {channel: result}."""
     infl = max(1.0, fit0["chi2"] / fit0["dof"])
     drift = {}
     bounds_rows = np.concatenate([anchors[:-1][np.searchsorted(int_seg, np.arange(M))], [anchors[-1]]])
-    bounds = (bounds_rows - 0) * s.dt  # time since the first row
+    bounds = (bounds_rows - 0) * dt  # time since the first row
     S_rw = rw_cov(bounds)
     bad = degenerate(fit0)
     for c in range(3):
@@ -385,13 +332,19 @@ def _drift_tests(s, fit0, anchors, int_seg, M, use):
         z_const = abs(one @ Vi @ b) / math.sqrt(max(one @ Vi @ one, 1e-300))
         thr = DRIFT_LR_GIVEN_BIAS if z_const > Z_SIGNIFICANT else DRIFT_LR
         d["z_const"] = float(z_const)
-        if d["lr"] > thr and d["K"] > s.drift_floor:
+        if d["lr"] > thr and d["K"] > DRIFT_FLOOR:
             drift[c] = d
     return drift
 
 
-def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
-    """Scale, drift and bias findings per channel from the final reference fit; the corrections."""
+def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, ref_spans, held):
+    """Scale, drift and bias findings per channel from the final reference fit: the gyro model they
+    make, the findings ``(finding, z)`` and what is said beside them."""
+    n = len(run["t"])
+    model = GyroModel.uncorrected(n)
+    corrections, bias_path, scale = dict(model.corrections), model.bias_path.copy(), model.scale.copy()
+    scale_se, bias_se, bias_fit = np.zeros(3), np.zeros(3), {}
+    findings, notes, undetermined = [], [], Said()
     n_int = len(anchors) - 1
     cov = fit["cov"] * infl
     # intervals: the model covariance (inflated by the residual chi-square) or, where larger, the
@@ -403,11 +356,11 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
     # reference: its error enters two neighbouring intervals with opposite signs, and a constant
     # bias sees only their telescoping sum): the block sandwich is the standard error, with the
     # t quantile of its G - 1 degrees of freedom, for the intervals and the tests alike
-    coloured = G >= 8 and (s.vibration is not None or _correlated_scores(fit))
+    coloured = G >= 8 and (vibrates or _correlated_scores(fit))
     if coloured:
         var_int = np.diag(cov_rob) * (stats.t.ppf(0.975, G - 1) / stats.norm.ppf(0.975)) ** 2
-        s.notes.append(f"the reference residuals are correlated from interval to interval: bias and scale "
-                       f"intervals from {G} blocks of intervals (cluster-robust, t with {G - 1} degrees of freedom)")
+        notes.append(f"the reference residuals are correlated from interval to interval: bias and scale "
+                     f"intervals from {G} blocks of intervals (cluster-robust, t with {G - 1} degrees of freedom)")
     else:
         var_int = np.maximum(np.diag(cov), np.diag(cov_rob))
     # the integration's share (:func:`half_rate_fit`): a third of the change at twice the step, as a
@@ -424,9 +377,9 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
     offs = fit["offs"]
     z95 = stats.norm.ppf(0.975)
     sc_idx = offs[-1]
-    rows_int = np.clip(np.searchsorted(anchors, np.arange(s.n), side="right") - 1, 0, n_int - 1)
+    rows_int = np.clip(np.searchsorted(anchors, np.arange(n), side="right") - 1, 0, n_int - 1)
     bad = degenerate(fit)
-    lost = {sp["axis"] for sp in s.ref_spans}
+    lost = {sp["axis"] for sp in ref_spans}
     for c in range(3):
         ch = CHANNELS[c]
         why_lost = (f"; the reference is inconsistent about the global {', '.join(sorted(lost))} axis and was left out there"
@@ -434,24 +387,24 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         s_hat, s_se = th[sc_idx + c], math.sqrt(max(cov[sc_idx + c, sc_idx + c], 0.0))
         s_half = z95 * math.sqrt(max(var_int[sc_idx + c], 0.0))
         if c in fit["weak_scale"]:
-            not_determined(s, GYRO_SCALE.name, ch, "too little rotation about it against the noise")
+            undetermined += Said.undetermined(GYRO_SCALE.name, ch, "too little rotation about it against the noise")
         elif sc_idx + c in bad or not s_se > 0 or not math.isfinite(s_hat):
-            not_determined(s, GYRO_SCALE.name, ch, _degenerate_reason(fit, sc_idx + c) + why_lost)
+            undetermined += Said.undetermined(GYRO_SCALE.name, ch, _degenerate_reason(fit, sc_idx + c) + why_lost)
         elif max(s_se, s_half / z95) > 0.05:
-            not_determined(s, GYRO_SCALE.name, ch, f"too little rotation about it: standard error {fmt(max(s_se, s_half / z95))}")
+            undetermined += Said.undetermined(GYRO_SCALE.name, ch, f"too little rotation about it: standard error {fmt(max(s_se, s_half / z95))}")
         elif not 0.5 < s_hat < 2.0:
-            not_determined(s, GYRO_SCALE.name, ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
+            undetermined += Said.undetermined(GYRO_SCALE.name, ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
                            "the gyro disagree in a way no scale explains" + why_lost)
-        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(s_hat - 1) > s.scale_floor:
-            s.scale[c] = s_hat
-            s.findings.append(GYRO_SCALE.finding(
+        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(s_hat - 1) > SCALE_FLOOR:
+            scale[c] = s_hat
+            findings.append(GYRO_SCALE.finding(
                 float(s_hat), [float(s_hat - s_half), float(s_hat + s_half)],
                 f"rotation about {ch} between reference rows is {fmt(s_hat)} times the gyro's "
                 f"(z = {fmt(abs(s_hat - 1) / s_se)})",
                 abs(s_hat - 1) / s_se, channel=ch))
         if c not in fit["weak_scale"]:
-            s.scale_se[c] = math.sqrt(max(var_int[sc_idx + c], 0.0))
-        s.corrections[ch] = replace(s.corrections[ch], scale=float(s.scale[c]))
+            scale_se[c] = math.sqrt(max(var_int[sc_idx + c], 0.0))
+        corrections[ch] = replace(corrections[ch], scale=float(scale[c]))
         sl = slice(offs[c], offs[c + 1])
         if c in drift:
             d = drift[c]
@@ -460,35 +413,37 @@ def _reference_findings(s, fit, infl, drift, seg_final, anchors, M):
         else:
             b0, b0_se = th[sl][0], math.sqrt(max(cov[sl, sl][0, 0], 0.0))
             b0_half = z95 * math.sqrt(max(var_int[offs[c]], 0.0))
-        if c in s.held_bias:
-            not_determined(s, GYRO_BIAS.name, ch, "the reference is a heading only, which does not see rotation "
-                           "about this axis (held at 0 while fitting the others)" if s.run.get("heading_only") else
+        if c in held:
+            undetermined += Said.undetermined(GYRO_BIAS.name, ch, "the reference is a heading only, which does not see rotation "
+                           "about this axis (held at 0 while fitting the others)" if run.get("heading_only") else
                            "its axis is nearly the global axis on which the reference is "
                            "inconsistent: the rest of the reference hardly sees it (held at 0 while fitting the others)")
             continue
         if offs[c] in bad or not b0_se > 0 or not math.isfinite(b0):
-            not_determined(s, GYRO_BIAS.name, ch, _degenerate_reason(fit, offs[c]) + why_lost)
+            undetermined += Said.undetermined(GYRO_BIAS.name, ch, _degenerate_reason(fit, offs[c]) + why_lost)
             continue
         if c in drift:
-            s.findings.append(GYRO_BIAS_DRIFT.finding(
+            findings.append(GYRO_BIAS_DRIFT.finding(
                 d["K"], [float(v) for v in d["interval"]],
                 f"the {ch} bias over {M} segments wanders like a random walk of intensity {fmt(d['K'])} "
                 f"rad/s/sqrt(s) (REML likelihood ratio {fmt(d['lr'])} against a constant bias)",
                 math.sqrt(max(d["lr"], 0.0)), channel=ch))
-            s.bias_path[:, c] = th[sl][seg_final[c][rows_int]]
-            s.corrections[ch] = replace(s.corrections[ch], bias_drift=float(d["K"]))
-        s.bias_se[c] = b0_half / z95
-        s.bias_fit[ch] = (float(b0), float(b0_half))
+            bias_path[:, c] = th[sl][seg_final[c][rows_int]]
+            corrections[ch] = replace(corrections[ch], bias_drift=float(d["K"]))
+        bias_se[c] = b0_half / z95
+        bias_fit[ch] = (float(b0), float(b0_half))
         if abs(b0) / _test_se(b0_se, b0_half / z95, infl, coloured) > (Z_COLOURED if coloured else Z_SIGNIFICANT) \
-                and abs(b0) > s.bias_floor:
-            s.corrections[ch] = replace(s.corrections[ch], bias=float(b0))
+                and abs(b0) > BIAS_FLOOR:
+            corrections[ch] = replace(corrections[ch], bias=float(b0))
             if c not in drift:
-                s.bias_path[:, c] = b0
-            s.findings.append(GYRO_BIAS.finding(
+                bias_path[:, c] = b0
+            findings.append(GYRO_BIAS.finding(
                 float(b0), [float(b0 - b0_half), float(b0 + b0_half)],
                 f"integrated {ch} departs from the reference like a constant rate error of {fmt(b0)} rad/s "
                 f"(z = {fmt(abs(b0) / b0_se)})" + (" at t0, under the random-walk drift" if c in drift else ""),
                 abs(b0) / b0_se, channel=ch))
+    model = GyroModel(corrections, bias_path, scale, "reference", scale_se, bias_se, bias_fit)
+    return model, findings, Said(notes=tuple(notes)) + undetermined
 
 
 def _test_se(se_model, se_interval, infl, coloured=False):
@@ -527,25 +482,25 @@ def _degenerate_reason(fit, i):
             "without information; its standard error would be 0 and its z infinite)")
 
 
-def _reference_attitude_error(s, ref_rows, lam):
+def _reference_attitude_error(run, segments, ref_spans, model, n_ref, ref_rows, lam) -> Comparison:
     """Attitude error integrated from the first reference row of each segment (a gap restarts it on
-    the reference), before and after the corrections."""
-    t, dt, w, q_ref = s.t, s.dt, s.w, s.run["q_ref"]
-    w_corr = (w - s.bias_path) / s.scale
+    the reference), before and after the corrections of ``model``: its comparison."""
+    t, dt, w, q_ref = run["t"], run["dt"], run["w"], run["q_ref"]
+    w_corr = (w - model.bias_path) / model.scale
     e_before, e_after, rows = [], [], []
     # restart at each gap and after each short span where the reference is inconsistent (a reset
     # would otherwise stay in the error for the rest of the run); rows inside such a span are not
     # compared. A span over a quarter of the run stays in (nothing would be left to compare).
     inside = np.zeros(len(t), bool)
     cuts = []
-    for sp in s.ref_spans:
+    for sp in ref_spans:
         if sp["t1"] - sp["t0"] > 0.25 * (t[-1] - t[0]):
             continue
         a, b = np.searchsorted(t, sp["t0"]), np.searchsorted(t, sp["t1"], side="right")
         inside[a + 1 : b] = True
         cuts.append(b)
     pieces = []
-    for i0, i1 in s.segments:
+    for i0, i1 in segments:
         edges = sorted({i0, i1, *[c for c in cuts if i0 < c < i1]})
         pieces += list(zip(edges[:-1], edges[1:]))
     ref_rows = ref_rows[~inside[ref_rows]]
@@ -560,7 +515,7 @@ def _reference_attitude_error(s, ref_rows, lam):
             w0, dw = convention_terms(r_)
             step = w0 + lam * dw
             qi = integrate_rates_np(q_ref[a0], step, dt)
-            if s.run.get("heading_only"):  # the heading's error: the reference says nothing else
+            if run.get("heading_only"):  # the heading's error: the reference says nothing else
                 return heading_error(qi[ok - a0], q_ref[ok])
             return rotation_angle_between_np(qi[ok - a0], q_ref[ok])
 
@@ -568,83 +523,92 @@ def _reference_attitude_error(s, ref_rows, lam):
         e_after.append(err_of(w_corr))
         rows.append(ok)
     if not rows:  # every piece too short: no comparison left (at most single reference rows)
-        s.not_observed.append("attitude error (no two reference rows in one piece between gaps and inconsistent spans)")
-        return
+        return Comparison(model, said=Said(not_observed=(
+            "attitude error (no two reference rows in one piece between gaps and inconsistent spans)",)))
     e_before, e_after, ok = np.concatenate(e_before), np.concatenate(e_after), np.concatenate(rows)
     a0 = ok[0]
     thr = np.radians(DRIFT_OFF_DEG)
     off = np.nonzero(e_before > thr)[0]
-    s.sim_err["attitude"] = {
+    sim_err = {"attitude": {
         "rms": float(np.sqrt(np.mean(e_before**2))), "max_abs": float(np.max(e_before)),
         "drift_off_time_s": float(t[ok[off[0]]] - t[a0]) if len(off) else None,
         "threshold_rad": float(thr), "unit": "rad",
         "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row of each "
                 "segment between gaps and after each span where the reference is inconsistent) and the reference",
-    }
-    s.gain = {"metric": "attitude_error_rms", "before": s.sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
-    s.plots["attitude"] = (t[ok], e_before, e_after)
-    n = s.n
+    }}
+    gain = {"metric": "attitude_error_rms", "before": sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
+    plots = {"attitude": (t[ok], e_before, e_after)}
+    n = len(t)
+    series, label = None, None
     # error series for Allan: per-sample rate error against the reference (dense reference only)
-    if s.n_ref >= 0.9 * n and n > 1000:
+    if n_ref >= 0.9 * n and n > 1000:
         dq = quat_multiply_np(quat_conjugate_np(q_ref[:-1]), q_ref[1:])
         w_ref = quat_log_np(dq) / dt
         good = np.isfinite(w_ref).all(1) & np.isfinite(w[:-1]).all(1)
-        s.allan_series = (w[:-1] - s.scale * w_ref)[good]
-        s.allan_label = "gyro minus reference-derived rate"
+        series = (w[:-1] - model.scale * w_ref)[good]
+        label = "gyro minus reference-derived rate"
+    return Comparison(model, sim_err=sim_err, gain=gain, plots=plots, allan_series=series, allan_label=label)
 
 
 # --------------------------------------------------------------------------- no reference
 
 
-def static_segment_step(s):
+def static_segment_step(run, n_ref, noise: GyroNoise) -> Comparison:
     """Without a reference (at most one row): biases from the longest segment standing still."""
-    t, dt, w, wn = s.t, s.dt, s.w, s.wn
-    if s.n_ref == 1:
-        s.notes.append("one reference row only: used as the initial attitude, no bias information")
-    s.not_observed.append("attitude departure (no reference attitude over more than one row)")
+    t, dt, w, wn = run["t"], run["dt"], run["w"], noise.wn
+    notes = ("one reference row only: used as the initial attitude, no bias information",) if n_ref == 1 else ()
+    not_observed = ("attitude departure (no reference attitude over more than one row)",)
+    model = GyroModel.uncorrected(len(t))
     # a gyro recorded in coarse steps toggles between them while standing still: its rounding
     # (a third of a step squared, the variance of a toggle) is the least spread a still window has
-    sigma = np.maximum(wn["sigma"] if s.noise_found else np.zeros(3), math.sqrt(3.0) * s.run["quantisation"])
+    sigma = np.maximum(wn["sigma"] if noise.found else np.zeros(3), math.sqrt(3.0) * run["quantisation"])
     st = static_segment(w, dt, sigma)
     if st is None:
-        return
-    s.bias_source = "static"
+        return Comparison(model, said=Said(notes=notes, not_observed=not_observed))
     i0, i1 = st["rows"]
-    s.observed.append(f"static segment t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s (assumed at rest, true rate 0)")
+    observed = (f"static segment t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s (assumed at rest, true rate 0)",)
     z95 = stats.norm.ppf(0.975)
+    corrections, bias_path, bias_se, bias_fit = dict(model.corrections), model.bias_path.copy(), np.zeros(3), {}
+    findings = []
     for c in range(3):
         ch = CHANNELS[c]
         b = float(st["mean"][c])
-        se = math.sqrt(max(wn["var"][c], s.floor**2) / st["n"])
-        s.bias_se[c] = se
-        s.bias_fit[ch] = (b, float(z95 * se))
-        s.corrections[ch] = replace(s.corrections[ch], bias=b)
-        s.bias_path[:, c] = b
-        if abs(b) / se > Z_SIGNIFICANT and abs(b) > s.bias_floor:
-            s.findings.append(GYRO_BIAS.finding(
+        se = math.sqrt(max(wn["var"][c], noise.floor**2) / st["n"])
+        bias_se[c] = se
+        bias_fit[ch] = (b, float(z95 * se))
+        corrections[ch] = replace(corrections[ch], bias=b)
+        bias_path[:, c] = b
+        if abs(b) / se > Z_SIGNIFICANT and abs(b) > BIAS_FLOOR:
+            findings.append(GYRO_BIAS.finding(
                 b, [float(b - z95 * se), float(b + z95 * se)],
                 f"{ch} reads {fmt(b)} rad/s on average while standing still ({fmt((i1 - i0) * dt)} s, z = {fmt(abs(b) / se)})",
                 abs(b) / se, channel=ch))
-    s.allan_series, s.allan_label = st["data"], "rates in the static segment"
-    s.not_observed.append("gyro scale (needs a reference attitude)")
-    s.not_observed.append("gyro bias drift (needs a reference attitude)")
-    s.sim_err["static_rate"] = {"rms": float(np.sqrt(np.mean(st["mean"] ** 2))), "unit": "rad/s"}
-    s.gain = {"metric": "static_mean_rate_rms", "before": float(np.sqrt(np.mean(st["mean"] ** 2))), "after": 0.0, "unit": "rad/s"}
+    not_observed += ("gyro scale (needs a reference attitude)", "gyro bias drift (needs a reference attitude)")
+    rms = float(np.sqrt(np.mean(st["mean"] ** 2)))
+    return Comparison(
+        replace(model, corrections=corrections, bias_path=bias_path, bias_source="static", bias_se=bias_se,
+                bias_fit=bias_fit),
+        findings=tuple(findings), sim_err={"static_rate": {"rms": rms, "unit": "rad/s"}},
+        gain={"metric": "static_mean_rate_rms", "before": rms, "after": 0.0, "unit": "rad/s"},
+        allan_series=st["data"], allan_label="rates in the static segment",
+        said=Said(notes=notes, observed=observed, not_observed=not_observed))
 
 
 # --------------------------------------------------------------------------- Allan
 
 
-def allan_step(s):
-    """Allan deviation of the best available error series (the rates themselves as the last resort)."""
-    if s.allan_series is None:
-        i0, i1 = max(s.segments, key=lambda r: r[1] - r[0])
-        s.allan_series = (s.w - s.bias_path)[i0:i1]
-        s.allan_label = "measured rates (the motion dominates at long tau)"
-    if s.allan_series.shape[0] >= 64:
-        a = allan(s.allan_series, s.dt)
-        a["series"] = s.allan_label
-        s.allan = a
-        s.plots["allan"] = a
-        if s.noise_finding is not None:
-            s.noise_finding["evidence"] += f"; Allan deviation of the {s.allan_label} gives N = {fmt(a['fit']['N'])}"
+def allan_step(run, noise: GyroNoise, comp: Comparison) -> tuple[dict | None, GyroNoise]:
+    """Allan deviation of the best available error series (the rates themselves as the last
+    resort); the gyro noise finding with what it says."""
+    series, label = comp.allan_series, comp.allan_label
+    if series is None:
+        i0, i1 = max(noise.segments, key=lambda r: r[1] - r[0])
+        series = (run["w"] - comp.model.bias_path)[i0:i1]
+        label = "measured rates (the motion dominates at long tau)"
+    if series.shape[0] < 64:
+        return None, noise
+    a = {**allan(series, run["dt"]), "series": label}
+    if noise.finding is not None:
+        noise = replace(noise, finding={**noise.finding, "evidence": noise.finding["evidence"]
+                                        + f"; Allan deviation of the {label} gives N = {fmt(a['fit']['N'])}"})
+    return a, noise

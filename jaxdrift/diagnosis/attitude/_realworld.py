@@ -9,12 +9,12 @@ run cannot determine, gaps, and the findings of an inconsistent reference.
 - :func:`degenerate`: the parameters of the reference fit that its information matrix does not
   determine (a null direction): reported as not determined, never as a finding with a standard
   error of 0 and an infinite z.
-- :func:`not_determined`: the report's ``not_determined`` entries ``{cause, channel, reason}``.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 from scipy import stats
@@ -25,7 +25,7 @@ from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
 from ._noise import estimate_white_noise
 
-__all__ = ["noise_kind_step", "degenerate", "not_determined", "gap_mask", "residual_noise_scale",
+__all__ = ["noise_kind_step", "degenerate", "gap_mask", "residual_noise_scale",
            "inconsistent_findings", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
            "heading_error", "STILL_MIN_S"]
 
@@ -44,42 +44,42 @@ def _noise_interval(wn, dt):
     return math.sqrt(var * dt), math.sqrt(max(var - half, 0.0) * dt), math.sqrt((var + half) * dt)
 
 
-def noise_kind_step(s):
-    """Gyro noise from a span where the reference says the body does not move, else an upper bound.
-    Where the gyro vibrates (:mod:`._vibration`) the noise was measured on its quiet spans: a body
-    held still by the reference may still shake."""
-    if getattr(s, "vibration", None) is not None:
-        return
-    dt = s.dt
-    i0, i1 = _longest(s.still)
+def noise_kind_step(run, noise, still, vib):
+    """Gyro noise from a span where the reference says the body does not move (rows ``still``),
+    else an upper bound: the revised :class:`._records.GyroNoise`. Where the gyro vibrates
+    (``vib``, :mod:`._vibration`) the noise was measured on its quiet spans and stays: a body held
+    still by the reference may still shake."""
+    if vib is not None:
+        return noise
+    dt, t = run["dt"], run["t"]
+    i0, i1 = _longest(still)
     if i1 - i0 >= max(256, STILL_MIN_S / dt):
-        wn = estimate_white_noise(s.w[i0:i1], dt)
-        if wn["plateau"] and math.sqrt(float(np.mean(wn["var"]))) > s.floor:
+        wn = estimate_white_noise(run["w"][i0:i1], dt)
+        if wn["plateau"] and math.sqrt(float(np.mean(wn["var"]))) > noise.floor:
             N, lo, hi = _noise_interval(wn, dt)
-            s.sigma_axis, s.noise_found = wn["sigma"], True
-            s.noise_var_rate = max(float(np.mean(wn["var"])) * dt, s.floor**2 * dt, 1e-24)
-            s.noise_finding = {
+            return replace(noise, sigma_axis=wn["sigma"], found=True,
+                           var_rate=max(float(np.mean(wn["var"])) * dt, noise.floor**2 * dt, 1e-24), finding={
                 "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
                 "interval": [lo, hi],
                 "evidence": (
-                    f"while the reference says the body does not move (t = {fmt(s.t[i0])}..{fmt(s.t[i1 - 1])} s), "
+                    f"while the reference says the body does not move (t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s), "
                     f"order-{wn['order']} differences of the rates are white with per-sample std "
                     f"{', '.join(fmt(v) for v in wn['sigma'])} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
                     f"N = sigma sqrt(dt) = {fmt(N)} rad/sqrt(s) = {fmt(np.degrees(N) * 60)} deg/sqrt(h)"
                 ),
-            }
-            return
-    why = ("no reference attitude says where the body does not move" if s.still is None
+            })
+    why = ("no reference attitude says where the body does not move" if still is None
            else f"the reference says the body does not move for {fmt((i1 - i0) * dt)} s only (at least "
                 f"{fmt(STILL_MIN_S)} s needed)")
-    f = s.noise_finding
+    f = noise.finding
     if f is None:
-        return  # below the file's rounding, or never white (not separable from the motion: a note says so)
+        return noise  # below the file's rounding, or never white (not separable from the motion: a note says so)
     hi = float(f["interval"][1])
-    f["estimate_kind"] = "upper_bound"
-    f["interval"] = [0.0, hi]  # the estimate stays the differences' level, as for force noise
-    f["evidence"] = (f"an upper bound, N <= {fmt(hi)} rad/sqrt(s): {why}, so the rates' high-frequency "
-                     f"content may be true motion (vibration); " + f["evidence"])
+    # the estimate stays the differences' level, as for force noise
+    return replace(noise, finding={
+        **f, "estimate_kind": "upper_bound", "interval": [0.0, hi],
+        "evidence": (f"an upper bound, N <= {fmt(hi)} rad/sqrt(s): {why}, so the rates' high-frequency "
+                     f"content may be true motion (vibration); " + f["evidence"])})
 
 
 def residual_noise_scale(fit):
@@ -103,12 +103,6 @@ def degenerate(fit, tol=1e-10, share=0.1):
     if null.any():
         bad |= set(int(i) for i in np.nonzero(np.any(np.abs(V[:, null]) > share, axis=1))[0])
     return bad
-
-
-def not_determined(s, cause, channel, reason):
-    """Record a cause the run cannot determine (report ``not_determined``; also ``observability``)."""
-    s.not_determined.append({"cause": cause, "channel": channel, "reason": reason})
-    s.not_observed.append(f"{cause} of {channel} ({reason})")
 
 
 def finite_segments(run):

@@ -20,39 +20,42 @@ from ._common import CHANNELS, SCHEMA
 __all__ = ["assemble_report", "write_plots"]
 
 
-def assemble_report(s):
-    """The report dict (docs/measured-data.md, kind "attitude") from the pipeline state ``s``."""
-    findings = s.findings
-    t, dt = s.t, s.dt
-    n = s.n
+def assemble_report(d):
+    """The report dict (docs/measured-data.md, kind "attitude") from the records of one sensor's run
+    (:class:`._records.Diagnosis`). The findings are copies: the report's own."""
+    comp, said, run = d.comparison, d.said, d.run
+    t, dt = run["t"], run["dt"]
+    n = len(t)
     T = t[-1] - t[0]
-    allan = s.allan
-    findings.sort(key=lambda fz: -fz[1])
-    ranked = [f for f, _ in findings]
-    if s.noise_finding is not None:
-        ranked.append(s.noise_finding)
-    ranked.extend(s.noise_findings)
-    joint_intervals(ranked)
+    allan = d.allan
+    ranked = [dict(f) for f, _ in sorted(comp.findings, key=lambda fz: -fz[1])]
+    if d.noise.finding is not None:
+        ranked.append(dict(d.noise.finding))
+    if d.vibration is not None:
+        ranked.append(dict(d.vibration.finding))
+    ranked.extend(dict(f) for f in comp.noise_findings)
+    ranked = joint_intervals(ranked)
     if not ranked:
         ranked = [{"cause": "none", "estimate": None, "unit": None, "interval": None,
                    "evidence": "no systematic effect and no white noise above the file's rounding"}]
     report = {
         "schema": SCHEMA,
         "kind": "attitude",
-        "simulation_error": s.sim_err,
+        "simulation_error": comp.sim_err,
         "findings": ranked,
-        "extended_model": {"corrections": corrections_json(s.corrections)},
-        "gain": s.gain if s.gain is not None else {"metric": None, "before": None, "after": None},
-        "observability": {"used": s.observed, "not_observed": s.not_observed, "notes": s.notes},
-        "not_determined": s.not_determined,
+        "extended_model": {"corrections": corrections_json(comp.model.corrections)},
+        "gain": comp.gain if comp.gain is not None else {"metric": None, "before": None, "after": None},
+        "observability": {"used": list(said.observed), "not_observed": list(said.not_observed),
+                          "notes": list(said.notes)},
+        "not_determined": list(said.not_determined),
         "allan": None if allan is None else {
             "series": allan["series"], "N": allan["fit"]["N"], "B": allan["fit"]["B"], "K": allan["fit"]["K"],
             "units": {"N": "rad/sqrt(s)", "B": "rad/s", "K": "rad/s/sqrt(s)"},
         },
-        "run": {"rows": int(n), "dt": float(dt), "duration_s": float(T), "reference_rows": s.n_ref,
-                "sensors": 0 if s.positions is None else int(s.positions.shape[0]),
-                "time_base": run_block(s.run.get("time_base")),
-                "reference_alignment": s.alignment},
+        "run": {"rows": int(n), "dt": float(dt), "duration_s": float(T), "reference_rows": d.n_ref,
+                "sensors": 0 if d.positions is None else int(d.positions.shape[0]),
+                "time_base": run_block(run.get("time_base")),
+                "reference_alignment": d.alignment},
     }
     check_report_finite(report)  # every attitude report, wherever it is made (CLI, API, tests, sweeps)
     return report

@@ -28,12 +28,14 @@ upper bound and the vibration is named over the whole run.
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
 from .._diffnoise import white_factor
 from ._causes import GYRO_NOISE, VIBRATION
 from ._common import CHANNELS, fmt
+from ._records import Said, Vibration
 
 __all__ = ["vibration_step", "WINDOW_S", "VIBRATION_RATIO", "QUIET_RATIO", "QUIET_MIN_ROWS", "PEAK_RATIO"]
 
@@ -102,38 +104,39 @@ def _spans(windows, mask, t):
     return [[a, b] for a, b, _ in out]
 
 
-def vibration_step(s):
+def vibration_step(run, noise):
     """Vibration found and named, the white noise re-measured where the gyro is quiet (see the
-    module's docstring). Sets ``s.vibration`` (None where the levels are one white noise)."""
-    s.vibration = None
-    wn = s.wn
-    if wn is None or not s.noise_found:
-        return
+    module's docstring). Returns ``(noise, vibration, said)``: the revised
+    :class:`._records.GyroNoise`, the :class:`._records.Vibration` (None where the levels are one
+    white noise) and its note."""
+    wn = noise.wn
+    if wn is None or not noise.found:
+        return noise, None, Said()
     # at least order 4: a difference of that order keeps a vibration near the Nyquist frequency and
     # damps a hand's or a vehicle's motion (below a tenth of the rate) by 50 times and more
-    dt, w, k = s.dt, s.w, max(int(wn["order"]), 4)
+    dt, w, t, k = run["dt"], run["w"], run["t"], max(int(wn["order"]), 4)
     rows = max(64, int(round(WINDOW_S / dt)))
-    win = _window_levels(w, s.segments, k, rows)
+    win = _window_levels(w, noise.segments, k, rows)
     if len(win) < 4:
-        return
+        return noise, None, Said()
     lev = np.array([math.sqrt(float(np.mean(v))) for _, _, v in win])  # pooled over the axes
     # never below the file's rounding (a gyro written in coarse steps has windows of zero differences)
-    quiet_level = max(float(lev.min()), 3.0 * s.floor)
+    quiet_level = max(float(lev.min()), 3.0 * noise.floor)
     vib = lev > VIBRATION_RATIO * quiet_level
     f_min = min(10.0, 0.1 / dt)  # above the motion band
     if vib.any():
         quiet = lev <= QUIET_RATIO * quiet_level
         f, p = _spectrum(w, [x for x, m in zip(win, vib) if m], dt)
         peaks, _ = _peaks(f, p, f_min)
-        spans = _spans(win, vib, s.t)
+        spans = _spans(win, vib, t)
     else:
         f, p = _spectrum(w, win, dt)
         peaks, _ = _peaks(f, p, f_min)
         if not peaks:
-            return
+            return noise, None, Said()
         quiet = np.zeros(len(win), bool)
         vib = np.ones(len(win), bool)
-        spans = [[float(s.t[win[0][0]]), float(s.t[win[-1][1] - 1])]]
+        spans = [[float(t[win[0][0]]), float(t[win[-1][1] - 1])]]
     var_vib = np.mean([v for (_, _, v), m in zip(win, vib) if m], axis=0)
     level = np.sqrt(var_vib)
     n_quiet = int(quiet.sum()) * rows
@@ -143,13 +146,13 @@ def vibration_step(s):
         half = 1.96 * math.sqrt(2.0 * math.comb(4 * k, 2 * k) / white_factor(k) ** 2 / max(n_eff, 1))
         vq = float(np.mean(var_q))
         N = math.sqrt(vq * dt)
-        quiet_spans = _spans(win, quiet, s.t)
+        quiet_spans = _spans(win, quiet, t)
         where = ", ".join(f"{fmt(a)}..{fmt(b)} s" for a, b in quiet_spans[:4]) + (" ..." if len(quiet_spans) > 4 else "")
-        # (s.sigma_axis stays the differences' level: the vibration is in the rates the scale fit
+        # (the noise's sigma_axis stays the differences' level: the vibration is in the rates the scale fit
         # regresses on, as much an error of the regressor as the white noise)
         sig_q = np.sqrt(var_q)
-        s.noise_var_rate = max(vq * dt, s.floor**2 * dt, 1e-24)
-        s.noise_finding = {
+        var_rate = max(vq * dt, noise.floor**2 * dt, 1e-24)
+        finding = {
             "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
             "interval": [N * math.sqrt(max(1.0 - half, 0.0)), N * math.sqrt(1.0 + half)],
             "evidence": (f"measured where the gyro is quiet ({n_quiet} rows: t = {where}), away from the "
@@ -159,8 +162,8 @@ def vibration_step(s):
         }
     else:
         N = quiet_level * math.sqrt(dt)
-        s.noise_var_rate = max(quiet_level**2 * dt, s.floor**2 * dt, 1e-24)
-        s.noise_finding = {
+        var_rate = max(quiet_level**2 * dt, noise.floor**2 * dt, 1e-24)
+        finding = {
             "cause": GYRO_NOISE.name, "estimate_kind": "upper_bound", "estimate": N, "unit": GYRO_NOISE.unit,
             "interval": [0.0, N],
             "evidence": (f"an upper bound, N <= {fmt(N)} rad/sqrt(s) (the quietest {fmt(rows * dt)} s of the run): "
@@ -170,16 +173,16 @@ def vibration_step(s):
     peak_txt = (f"; spectral peaks at {', '.join(fmt(x) for x in peaks)} Hz" if peaks else "")
     span_txt = ", ".join(f"{fmt(a)}..{fmt(b)} s" for a, b in spans[:6]) + (" ..." if len(spans) > 6 else "")
     vib_rows = int(vib.sum()) * rows
-    s.vibration = {"spans": spans, "level": level, "peaks": peaks, "rows": vib_rows}
     f_entry, z = VIBRATION.finding(
         float(level.max()), None,
-        f"the rates' high-frequency content is {fmt(float(level.max()) / math.sqrt(max(s.noise_var_rate / dt, 1e-300)))} "
+        f"the rates' high-frequency content is {fmt(float(level.max()) / math.sqrt(max(var_rate / dt, 1e-300)))} "
         f"times the white noise over {fmt(vib_rows * dt)} s (t = {span_txt}): per-sample level "
         f"{', '.join(fmt(v) for v in level)} rad/s (wx, wy, wz){peak_txt}. Vibration averages out between "
         f"reference rows: the reference fit weighs its intervals by their own residuals",
         0.0, level_per_axis=[float(v) for v in level], peak_frequencies_hz=peaks, spans_s=spans,
         duration_s=float(vib_rows * dt))
-    s.noise_findings.insert(0, f_entry)
-    s.notes.append(f"vibration: {', '.join(CHANNELS)} levels {', '.join(fmt(v) for v in level)} rad/s per sample "
-                   f"over {fmt(vib_rows * dt)} s; the gyro noise is "
-                   + ("measured on its quiet spans" if s.noise_finding["estimate_kind"] == "estimate" else "an upper bound"))
+    note = (f"vibration: {', '.join(CHANNELS)} levels {', '.join(fmt(v) for v in level)} rad/s per sample "
+            f"over {fmt(vib_rows * dt)} s; the gyro noise is "
+            + ("measured on its quiet spans" if finding["estimate_kind"] == "estimate" else "an upper bound"))
+    return (replace(noise, var_rate=var_rate, finding=finding),
+            Vibration(spans=spans, level=level, peaks=peaks, rows=vib_rows, finding=f_entry), Said(notes=(note,)))

@@ -134,7 +134,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     findings = [{"cause": "channel_fault", "channel": f["channel"], "kind": f["kind"], "span_s": f["span_s"],
                  "estimate": float(f["span_s"][1] - f["span_s"][0]), "unit": "s", "interval": None,
                  "evidence": f["evidence"] + "; the run is analysed without it"} for f in faults] + findings
-    joint_intervals(findings)
+    findings = joint_intervals(findings)
     if not findings:
         findings.append({"cause": "none", "evidence": (
             "no systematic cause passes the test and " + noise["source"] +
