@@ -256,35 +256,47 @@ MUTATION_ALLOWED = {
 }
 
 
+def _functions(root: Path):
+    """(module, function node) of every function in the package below ``root``."""
+    for path in sorted(root.rglob("*.py")):
+        mod = ".".join(path.relative_to(root).with_suffix("").parts)
+        mod = mod[:-len(".__init__")] if mod.endswith(".__init__") else mod
+        for fn in ast.walk(ast.parse(path.read_text())):
+            if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                yield mod, fn
+
+
+def _fake_package(tmp_path, source: str) -> Path:
+    """A package ``jaxdrift.diagnosis._x`` of ``source`` below ``tmp_path``: its root."""
+    pkg = tmp_path / "jaxdrift" / "diagnosis"
+    pkg.mkdir(parents=True)
+    (pkg / "_x.py").write_text(source)
+    return tmp_path / "jaxdrift"
+
+
 def mutations(root: Path = ROOT) -> list[str]:
     """``module:line function: target`` for every assignment to an attribute of an object the
     function did not create (a parameter, an alias of another object, ``self.x.y``), and every
     ``setattr``/``object.__setattr__`` outside ``__post_init__``."""
     out = []
-    for path in sorted(root.rglob("*.py")):
-        mod = ".".join(path.relative_to(root).with_suffix("").parts)
-        mod = mod[:-len(".__init__")] if mod.endswith(".__init__") else mod
-        tree = ast.parse(path.read_text())
-        for fn in ast.walk(tree):
-            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                continue
-            params = {a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs}
-            made = {t.id for node in ast.walk(fn) if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call)
-                    for t in node.targets if isinstance(t, ast.Name)} - params
-            for node in ast.walk(fn):
-                if isinstance(node, ast.Call) and isinstance(node.func, (ast.Name, ast.Attribute)) \
-                        and ast.unparse(node.func) in ("setattr", "object.__setattr__") and fn.name != "__post_init__":
-                    out.append(f"{mod}:{node.lineno} {fn.name}: {ast.unparse(node)[:60]}")
-                targets = node.targets if isinstance(node, ast.Assign) else \
-                    [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
-                for t in targets:
-                    for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
-                        if not isinstance(tt, ast.Attribute):
-                            continue
-                        base = tt.value
-                        if isinstance(base, ast.Name) and (base.id in ("self", "cls") or base.id in made):
-                            continue
-                        out.append(f"{mod}:{tt.lineno} {fn.name}: {ast.unparse(tt)}")
+    for mod, fn in _functions(root):
+        params = {a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs}
+        made = {t.id for node in ast.walk(fn) if isinstance(node, ast.Assign) and isinstance(node.value, ast.Call)
+                for t in node.targets if isinstance(t, ast.Name)} - params
+        for node in ast.walk(fn):
+            if isinstance(node, ast.Call) and isinstance(node.func, (ast.Name, ast.Attribute)) \
+                    and ast.unparse(node.func) in ("setattr", "object.__setattr__") and fn.name != "__post_init__":
+                out.append(f"{mod}:{node.lineno} {fn.name}: {ast.unparse(node)[:60]}")
+            targets = node.targets if isinstance(node, ast.Assign) else \
+                [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
+            for t in targets:
+                for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                    if not isinstance(tt, ast.Attribute):
+                        continue
+                    base = tt.value
+                    if isinstance(base, ast.Name) and (base.id in ("self", "cls") or base.id in made):
+                        continue
+                    out.append(f"{mod}:{tt.lineno} {fn.name}: {ast.unparse(tt)}")
     return out
 
 
@@ -333,35 +345,29 @@ def item_mutations(root: Path = ROOT) -> list[str]:
     parameter of the function, or on something reached from one (``p.x[k] = v``), where the
     function never rebinds that parameter (``p = dict(p)`` makes it its own)."""
     out = []
-    for path in sorted(root.rglob("*.py")):
-        mod = ".".join(path.relative_to(root).with_suffix("").parts)
-        mod = mod[:-len(".__init__")] if mod.endswith(".__init__") else mod
-        tree = ast.parse(path.read_text())
-        for fn in ast.walk(tree):
-            if not isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                continue
-            params = {a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs} - {"self", "cls"}
-            if fn.args.vararg is not None:
-                params.add(fn.args.vararg.arg)
-            rebound = set()
-            for node in ast.walk(fn):
-                tg = node.targets if isinstance(node, ast.Assign) else \
-                    [node.target] if isinstance(node, (ast.AnnAssign, ast.For)) else []
-                for t in tg:
-                    for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
-                        if isinstance(tt, ast.Name):
-                            rebound.add(tt.id)
-            given = params - rebound
-            for node in ast.walk(fn):
-                targets = node.targets if isinstance(node, (ast.Assign, ast.Delete)) else \
-                    [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
-                for t in targets:
-                    for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
-                        if isinstance(tt, ast.Subscript) and _root_name(tt) in given:
-                            out.append(f"{mod}:{tt.lineno} {fn.name}: {ast.unparse(tt)}")
-                if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
-                        and node.func.attr in IN_PLACE and _root_name(node.func.value) in given:
-                    out.append(f"{mod}:{node.lineno} {fn.name}: {ast.unparse(node)[:60]}")
+    for mod, fn in _functions(root):
+        params = {a.arg for a in fn.args.posonlyargs + fn.args.args + fn.args.kwonlyargs} - {"self", "cls"}
+        if fn.args.vararg is not None:
+            params.add(fn.args.vararg.arg)
+        rebound = set()
+        for node in ast.walk(fn):
+            tg = node.targets if isinstance(node, ast.Assign) else \
+                [node.target] if isinstance(node, (ast.AnnAssign, ast.For)) else []
+            for t in tg:
+                for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                    if isinstance(tt, ast.Name):
+                        rebound.add(tt.id)
+        given = params - rebound
+        for node in ast.walk(fn):
+            targets = node.targets if isinstance(node, (ast.Assign, ast.Delete)) else \
+                [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else []
+            for t in targets:
+                for tt in (t.elts if isinstance(t, ast.Tuple) else [t]):
+                    if isinstance(tt, ast.Subscript) and _root_name(tt) in given:
+                        out.append(f"{mod}:{tt.lineno} {fn.name}: {ast.unparse(tt)}")
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) \
+                    and node.func.attr in IN_PLACE and _root_name(node.func.value) in given:
+                out.append(f"{mod}:{node.lineno} {fn.name}: {ast.unparse(node)[:60]}")
     return out
 
 
@@ -374,28 +380,23 @@ def test_no_step_changes_what_it_was_given():
 
 
 def test_item_mutation_checker_can_fail(tmp_path):
-    pkg = tmp_path / "jaxdrift" / "diagnosis"
-    pkg.mkdir(parents=True)
-    (pkg / "_x.py").write_text(
-        "def fill(report):\n    report['x'] = 1\n"
-        "def grow(findings, f):\n    findings.append(f)\n"
-        "def deep(s):\n    s.notes[0] += 'x'\n"
-        "def own(run):\n    run = dict(run)\n    run['x'] = 1\n    return run\n"
-        "def local():\n    out = []\n    out.append(1)\n    return out\n")
-    found = "\n".join(item_mutations(tmp_path / "jaxdrift"))
+    root = _fake_package(tmp_path, "def fill(report):\n    report['x'] = 1\n"
+                                   "def grow(findings, f):\n    findings.append(f)\n"
+                                   "def deep(s):\n    s.notes[0] += 'x'\n"
+                                   "def own(run):\n    run = dict(run)\n    run['x'] = 1\n    return run\n"
+                                   "def local():\n    out = []\n    out.append(1)\n    return out\n")
+    found = "\n".join(item_mutations(root))
     assert "fill: report['x']" in found and "grow: findings.append" in found and "deep: s.notes[0]" in found
     assert "own" not in found and "local" not in found
 
 
 def test_mutation_checker_can_fail(tmp_path):
-    pkg = tmp_path / "jaxdrift" / "diagnosis"
-    pkg.mkdir(parents=True)
-    (pkg / "_x.py").write_text(
-        "import copy\n"
-        "def limit(prob):\n    prob.pipe.band = {}\n"
-        "def alias(self):\n    pipe = self.pipe\n    pipe.band = {}\n"
-        "def fine(self):\n    new = copy.copy(self)\n    new.band = {}\n    self.x = 1\n    return new\n"
-        "def hidden(o):\n    setattr(o, 'band', 1)\n")
-    found = "\n".join(mutations(tmp_path / "jaxdrift"))
+    root = _fake_package(tmp_path, "import copy\n"
+                                   "def limit(prob):\n    prob.pipe.band = {}\n"
+                                   "def alias(self):\n    pipe = self.pipe\n    pipe.band = {}\n"
+                                   "def fine(self):\n    new = copy.copy(self)\n    new.band = {}\n    self.x = 1\n"
+                                   "    return new\n"
+                                   "def hidden(o):\n    setattr(o, 'band', 1)\n")
+    found = "\n".join(mutations(root))
     assert "limit: prob.pipe.band" in found and "alias: pipe.band" in found and "hidden: setattr" in found
     assert "fine" not in found
