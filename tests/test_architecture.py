@@ -323,8 +323,6 @@ ITEM_MUTATION_ALLOWED = {
     "diagnosis.vehicle._pipeline:select_with_form": "the selection log",
     "campaign._campaign:_diagnose_all": "the campaign's log",
     "diagnosis.vehicle._adequacy:_named": "the extended model's nonlinear correction, filled finding by finding",
-    "diagnosis.vehicle._extend:resimulate": "the report's simulation_error and gain blocks, filled by the re-simulation",
-    "diagnosis.vehicle._pipeline:_stand_ins": "findings marked as linear stand-ins in the pipeline's own list",
     "diagnosis.vehicle._residuals:_band_filter": "the residual channels filtered in their own dict",
     # the readers assemble one run from columns, file by file
     **{f"io._runs:{f}": "the reader's columns and notes, assembled file by file"

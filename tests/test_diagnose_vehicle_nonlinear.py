@@ -219,11 +219,10 @@ def test_linear_stand_in_for_an_unseen_stop_says_so():
     given = [{"cause": "parameter_error", "parameter": "k4", "estimate": 1.19, "evidence": ev},
              {"cause": "parameter_error", "parameter": "k3", "estimate": 0.95, "evidence": ev},
              {"cause": "force_offset", "channel": "f2", "estimate": 40.0, "evidence": ev}]
-    out = list(given)
-    _stand_ins(out, [("bump_stop", 1), ("progressive_spring", 1), ("damper_asymmetry", 0)])
+    out = _stand_ins(given, [("bump_stop", 1), ("progressive_spring", 1), ("damper_asymmetry", 0)])
     assert out[0]["may_stand_in_for"] == ["bump_stop", "progressive_spring"] and "stand in" in out[0]["evidence"]
     assert "may_stand_in_for" not in out[1] and "may_stand_in_for" not in out[2]
     assert "may_stand_in_for" not in given[0]  # the records given are not changed
     d3 = [{"cause": "parameter_error", "parameter": "d3", "estimate": 1.3, "evidence": ev}]
-    _stand_ins(d3, [("damper_asymmetry", 0), ("bump_stop", 0)])
+    d3 = _stand_ins(d3, [("damper_asymmetry", 0), ("bump_stop", 0)])
     assert d3[0]["may_stand_in_for"] == ["damper_asymmetry"]

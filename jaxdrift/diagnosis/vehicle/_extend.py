@@ -214,11 +214,13 @@ def _rms(x) -> float:
 
 
 def resimulate(pipe, model: dict, p_ext: dict, corr_ext: dict, sigma: float, sim_err: dict,
-               gain: dict) -> dict:
+               gain: dict) -> tuple[dict, dict, dict]:
     """Run the force-driven model (A.3) before (model, measured forces) and after (extended model,
-    corrected forces) and add the measured pitch/heave errors to ``sim_err`` (before) and ``gain``
-    (before/after) in place. Returns the simulations and the unit noise-only pitch envelope."""
+    corrected forces). Returns ``(sims, sim_err, gain)``: the simulations and the unit noise-only
+    pitch envelope, and copies of ``sim_err`` and ``gain`` with the measured pitch/heave errors
+    added (before; before/after)."""
     run = pipe.run
+    sim_err, gain = dict(sim_err), dict(gain)
     forces0 = {ch: run[ch] for ch in FORCE_CHANNELS}
     forces1 = {ch: v[::pipe.U] for ch, v in pipe.corrected_forces(corr_ext).items()}
     y0, y1 = _force_driven_pitch(run, [model, p_ext], [forces0, forces1])
@@ -251,4 +253,4 @@ def resimulate(pipe, model: dict, p_ext: dict, corr_ext: dict, sigma: float, sim
         gain["beta_rms_after"] = gain["beta_error"]["after"]["rms"]
         gain["beta_rms_dynamic_before"] = gain["beta_error"]["before"]["rms_dynamic"]
         gain["beta_rms_dynamic_after"] = gain["beta_error"]["after"]["rms_dynamic"]
-    return sims
+    return sims, sim_err, gain

@@ -127,7 +127,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
             f"Too small to measure, at most {b:.3g} N: {src} (below the {NOISE_MIN_N:g} N a level is "
             f"reported at); the bound is the upper end of that level's 95 % interval.")))
     findings = form["findings"] + findings
-    _stand_ins(findings, form.get("unseen") or [])
+    findings = _stand_ins(findings, form.get("unseen") or [])
     # logger faults (found by the reader before anything was fitted; the run is their sound part)
     # lead the list: every other finding holds for the sound part only
     faults = (getattr(run, "time_base", None) or {}).get("logger_faults") or []
@@ -147,7 +147,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     sim_err = enforced_terms(prob_lin, model, res0)
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
-        sims = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain)
+        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain)
 
     report = {
         "schema": SCHEMA,
@@ -180,13 +180,15 @@ def _stand_ins(findings, unseen):
     """A linear parameter of an axle whose nonlinear suspension causes the run could not show may
     stand in for one of them (a stop or a progressive spring reads as a stiffer spring, an
     asymmetric damper as a damper rate): the finding says so (``may_stand_in_for``), not only the
-    notes. Sets the key on the findings of this report (new dicts made here)."""
+    notes. Returns the findings with the key set (new dicts where it is)."""
+    out = list(findings)
     for i, f in enumerate(findings):
         if f.get("cause") != "parameter_error":
             continue
         names = sorted({n for n, axle in unseen if _STANDS_IN.get((n, axle)) == f.get("parameter")})
         if names:
-            findings[i] = {**f, "may_stand_in_for": names, "evidence": f["evidence"] + (
+            out[i] = {**f, "may_stand_in_for": names, "evidence": f["evidence"] + (
                 f" It may stand in for a {' or '.join(names)} on this axle, which the run could not show "
                 f"(no spring travel measured, or too noisy): a linear change of the parameter is what such a "
                 f"cause looks like without one.")}
+    return out
