@@ -56,15 +56,15 @@ SOLVER_FIXED_HALF = SolverSpec("dopri5 fixed 0.5 ms", dt=5e-4)
 
 
 def _force_vf(t, x, args):
-    p, sig, spring = args
+    p, sig, spring, nl = args
     f = sig(t)
-    return force_driven_rhs(t, x, p, f[0], f[1], pitch_spring=spring)
+    return force_driven_rhs(t, x, p, f[0], f[1], pitch_spring=spring, nonlinear=nl)
 
 
 def _force_vf_linear(t, x, args):
-    p, sig, spring = args
+    p, sig, spring, nl = args
     f = sig(t)
-    return force_driven_rhs(t, x, p, f[0], f[1], linear=True, pitch_spring=spring)
+    return force_driven_rhs(t, x, p, f[0], f[1], linear=True, pitch_spring=spring, nonlinear=nl)
 
 
 def _check_signal(name, sig, channels):
@@ -81,13 +81,15 @@ def _span(save_ts, t_span):
 
 
 def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec = SOLVER_LOOSE, pitch_spring=None,
-                    x0=None, t_span=None, linear: bool = False):
+                    x0=None, t_span=None, linear: bool = False, nonlinear=None):
     """Force-driven model (A.3) excited by ``forces`` (``(2,)`` channels) from its equilibrium.
 
     Returns the engine's ``Solution`` (``ys`` of shape ``(len(save_ts), 10)``). Pure JAX: may be
     called under ``jit``/``vmap`` (``params`` may be a traced model); with traced ``save_ts`` give
     the concrete ``t_span=(t0, t1)``. ``pitch_spring=(k, d)`` adds the section-3 rotational
-    spring-damper; ``linear=True`` integrates the small-angle form of (A.3).
+    spring-damper; ``linear=True`` integrates the small-angle form of (A.3); ``nonlinear`` (a
+    :class:`~jaxdrift.models.NonlinearSuspension`) the chassis springs' and dampers' nonlinear
+    terms (its defaults: the linear law).
     """
     _check_signal("forces", forces, 2)
     t0, t1 = _span(save_ts, t_span)
@@ -98,26 +100,26 @@ def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec =
         _force_vf_linear if linear else _force_vf, x0, t0, t1,
         # numpy save times stay numpy: the engine then knows them exactly at trace time
         saveat=save_ts if isinstance(save_ts, np.ndarray) else jnp.asarray(save_ts),
-        args=(params, forces, spring), **solver.kwargs()
+        args=(params, forces, spring, nonlinear), **solver.kwargs()
     )
 
 
 def _pitch_vf(t, x, args):
-    p, sig, pitch = args
+    p, sig, pitch, nl = args
     f = sig(t)
     b = pitch(t)
-    return prescribed_pitch_rhs(t, x, p, f[0], f[1], b[0], b[1])
+    return prescribed_pitch_rhs(t, x, p, f[0], f[1], b[0], b[1], nonlinear=nl)
 
 
 def _pitch_vf_linear(t, x, args):
-    p, sig, pitch = args
+    p, sig, pitch, nl = args
     f = sig(t)
     b = pitch(t)
-    return prescribed_pitch_rhs(t, x, p, f[0], f[1], b[0], b[1], linear=True)
+    return prescribed_pitch_rhs(t, x, p, f[0], f[1], b[0], b[1], linear=True, nonlinear=nl)
 
 
 def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSignal, save_ts,
-                              solver: SolverSpec = SOLVER_LOOSE, t_span=None, linear: bool = False):
+                              solver: SolverSpec = SOLVER_LOOSE, t_span=None, linear: bool = False, nonlinear=None):
     """Step 5: model (A.5) driven by ``forces`` (2 channels) with the pitch prescribed by ``pitch``
     (3 channels: ``beta, beta', beta''``).
 
@@ -127,7 +129,8 @@ def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSigna
     initial state is the model's static equilibrium ``static_equilibrium(params, "pitch")``,
     whatever the prescribed pitch is at the start: a pitch that does not start at the model's
     equilibrium pitch (0 for the seed's symmetric table) gives an initial transient in ``lam``.
-    ``t_span``: ``(t0, t1)``, default the first and last save time.
+    ``t_span``: ``(t0, t1)``, default the first and last save time. ``nonlinear``: the chassis
+    springs' and dampers' nonlinear terms (:class:`~jaxdrift.models.NonlinearSuspension`).
     """
     _check_signal("forces", forces, 2)
     _check_signal("pitch", pitch, 3)
@@ -135,17 +138,19 @@ def simulate_prescribed_pitch(params, forces: SampledSignal, pitch: SampledSigna
     save_ts = jnp.asarray(save_ts)
     x0 = static_equilibrium(params, "pitch")
     vf = _pitch_vf_linear if linear else _pitch_vf
-    sol = solve_ode(vf, x0, t0, t1, saveat=save_ts, args=(params, forces, pitch), **solver.kwargs())
+    sol = solve_ode(vf, x0, t0, t1, saveat=save_ts, args=(params, forces, pitch, nonlinear), **solver.kwargs())
     b = jax.vmap(pitch)(save_ts)
-    lam = enforced_moment(sol.ys, params, b[:, 0], b[:, 1], b[:, 2], linear=linear)
+    lam = enforced_moment(sol.ys, params, b[:, 0], b[:, 1], b[:, 2], linear=linear, nonlinear=nonlinear)
     return sol, lam, params.I * b[:, 2]
 
 
-def force_driven_states(t, models: list[dict], forces: list[dict], dt: float | None = None) -> list[np.ndarray]:
+def force_driven_states(t, models: list[dict], forces: list[dict], dt: float | None = None,
+                        nonlinear: list | None = None) -> list[np.ndarray]:
     """States ``(n, 10)`` of (A.3) on the samples ``t`` (uniform) for each (model dict, forces
     ``{"f1", "f2"}`` on ``t``) pair, from each model's static equilibrium; fixed-step DOPRI5 at the
     sample interval (``dt``, default from ``t``) halved until at most 1 ms. Numpy in and out (x64
-    inside)."""
+    inside). ``nonlinear``: per pair, a :class:`~jaxdrift.models.NonlinearSuspension` or None (the
+    linear law; all None by default)."""
     import math
 
     from ..models._params import HalfCarParams
@@ -156,11 +161,11 @@ def force_driven_states(t, models: list[dict], forces: list[dict], dt: float | N
     tau = t - t[0]
     out = []
     with jax.enable_x64(True):
-        for m, f in zip(models, forces):
+        for m, f, nl in zip(models, forces, nonlinear or [None] * len(models)):
             p = jax.tree_util.tree_map(lambda v: jnp.asarray(v, dtype=jnp.float64), HalfCarParams.from_dict(m))
             sig = SampledSignal(0.0, dt, jnp.stack([jnp.asarray(f["f1"]), jnp.asarray(f["f2"])], axis=1))
             sol = simulate_forces(p, sig, jnp.asarray(tau), SolverSpec("fixed", dt=dt / sub),
-                                  t_span=(0.0, float(tau[-1])))
+                                  t_span=(0.0, float(tau[-1])), nonlinear=nl)
             if int(sol.result) != 0:
                 raise RuntimeError(f"force-driven simulation failed (result code {int(sol.result)})")
             out.append(np.asarray(sol.ys))

@@ -76,8 +76,9 @@ def section_forces(t, f1, f2, model=None, *, beta=None, beta_rate=None, s1=None,
                    filter_pitch: bool = True) -> dict:
     """Nominal section forces ``f3, f4`` of every variant the run allows (no added noise).
 
-    ``extended``: the diagnosis's ``extended_model`` (``parameters``, ``corrections``); None uses
-    the model itself. ``spring``: :func:`~jaxdrift.durability.pitch_spring_rule`'s dict (default:
+    ``extended``: the diagnosis's ``extended_model`` (``parameters``, ``corrections``, and
+    ``nonlinear`` where the diagnosis confirmed a nonlinear suspension cause); None uses the model
+    itself. ``spring``: :func:`~jaxdrift.durability.pitch_spring_rule`'s dict (default:
     the rule). ``filter_pitch=False``: plain central differences of the measured pitch (for
     comparison only). Returns ``{"forces": {variant: (n, 2)}, "pitch_spring_torque", "enforced_moment",
     "derivative_filter", "pitch_spring", "integration", "section_forces_fn"}``.
@@ -89,7 +90,7 @@ def section_forces(t, f1, f2, model=None, *, beta=None, beta_rate=None, s1=None,
     ext = extended or {"parameters": p, "corrections": _NO_CORRECTION}
     p_ext = _params_dict(ext.get("parameters", p))
     h, m = integration_step(p, dt)
-    h_ext, m_ext = integration_step(p_ext, dt)
+    h_ext, m_ext = integration_step(p_ext, dt, ext.get("nonlinear"))
     if m_ext > m:
         h, m = h_ext, m_ext
     pitch, dfilter = None, None
@@ -103,7 +104,7 @@ def section_forces(t, f1, f2, model=None, *, beta=None, beta_rate=None, s1=None,
             dfilter = {"kind": "none: plain central differences (filter_pitch=False)", "cutoff_hz": None}
         pitch = np.stack([b, db, ddb], axis=1)
     sf = build_section_forces(t, np.stack([f1, f2], axis=1), pitch, p, p_ext, Corrections.from_json(ext["corrections"]),
-                              spring, h)
+                              spring, h, ext.get("nonlinear"))
     out, code = _nominal(sf)
     out = np.asarray(out)
     if int(code) != 0:

@@ -7,8 +7,10 @@ Variants (the seed's section 3 and (4.4)/(A.5)):
   (:func:`pitch_spring_rule` for its stiffness); its reaction torque is returned as well;
 * ``stabilised``: (A.5), the measured pitch prescribed (filtered, see ``_derivative``), with the
   enforced moment ``lambda``;
-* ``extended``: ``stabilised`` with the diagnosis's extended model: its parameters, and the measured
-  forces corrected by its ``corrections`` (``true = (measured(t + delay) - offset) / scale``).
+* ``extended``: ``stabilised`` with the diagnosis's extended model: its parameters, its confirmed
+  nonlinear suspension terms (``nonlinear``: a damper's asymmetry, a progressive spring, a bump
+  stop), and the measured forces corrected by its ``corrections`` (``true = (measured(t + delay) -
+  offset) / scale``).
 
 The simulations reuse the paper study's :func:`~jaxdrift.simulate_forces` and
 :func:`~jaxdrift.simulate_prescribed_pitch`, integrated by fixed-step Dormand-Prince 5(4) on a step
@@ -29,7 +31,7 @@ import numpy as np
 
 from ..ensemble._noise import remove_input_effects, white_noise
 from ..io._corrections import Corrections
-from ..models._halfcar import pitch_spring_torque, spring_forces
+from ..models._halfcar import NonlinearSuspension, pitch_spring_torque, spring_forces
 from ..models._params import HalfCarParams
 from ..solvers._inputs import SampledSignal
 from ..analysis._force_driven import SolverSpec, simulate_forces, simulate_prescribed_pitch
@@ -74,12 +76,15 @@ def pitch_spring_rule(params: dict, k_rot: float | None = None, d_rot: float | N
                      else "given k_rot; d_rot = 2 sqrt(k_rot J) unless given")}
 
 
-def integration_step(params: dict, dt: float) -> tuple[float, int]:
+def integration_step(params: dict, dt: float, nonlinear: dict | None = None) -> tuple[float, int]:
     """``(h, m)``: the fixed step ``h = dt / m`` with ``m`` the fewest substeps per sample such that
     ``h`` is at most the tyre time constants ``d_i / k_i`` (the contact-point equations are stiff
     with eigenvalue ``-k_i / d_i``) and ``STEP_WHEEL_PHASE / omega_wheel``, ``omega_wheel =
-    sqrt((k_i + k_{3,4}) / m_i)`` (wheel hop)."""
-    p = params
+    sqrt((k_i + k_{3,4}) / m_i)`` (wheel hop); with a bump stop (``nonlinear``: the report's
+    ``extended_model.nonlinear``) the chassis spring's stiffness there adds the stop's."""
+    p = dict(params)
+    for k in ("k3", "k4"):
+        p[k] = p[k] + float((nonlinear or {}).get(f"stop_{k}", 0.0))
     h_max = min(p["d1"] / p["k1"], p["d2"] / p["k2"],
                 STEP_WHEEL_PHASE / math.sqrt((p["k1"] + p["k3"]) / p["m1"]),
                 STEP_WHEEL_PHASE / math.sqrt((p["k2"] + p["k4"]) / p["m2"]))
@@ -111,6 +116,7 @@ class SectionForces(eqx.Module):
     span: tuple = eqx.field(static=True)
     has_pitch: bool = eqx.field(static=True)
     has_drift: bool = eqx.field(static=True, default=False)  # a correction drifts (corr[3] != 0)
+    nonlinear_ext: NonlinearSuspension | None = None  # the extended model's nonlinear terms
 
     def __call__(self, key, idx, sigma):
         n = self.ts.shape[0]
@@ -133,10 +139,12 @@ class SectionForces(eqx.Module):
             pitch = SampledSignal(self.t0, self.dt, self.pitch)
             b, db = self.pitch[:, 0], self.pitch[:, 1]
 
-            def stabilised(params, signal):
-                sol, lam, _ = simulate_prescribed_pitch(params, signal, pitch, self.ts, solver, t_span=self.span)
+            def stabilised(params, signal, nl=None):
+                sol, lam, _ = simulate_prescribed_pitch(params, signal, pitch, self.ts, solver, t_span=self.span,
+                                                        nonlinear=nl)
                 y = sol.ys
-                f3, f4 = spring_forces((y[:, 0], y[:, 1], y[:, 2], b), (y[:, 3], y[:, 4], y[:, 5], db), params)
+                f3, f4 = spring_forces((y[:, 0], y[:, 1], y[:, 2], b), (y[:, 3], y[:, 4], y[:, 5], db), params,
+                                       nonlinear=nl)
                 return jnp.stack([f3, f4], axis=1), lam, sol.result.astype(jnp.int32)
 
             f_st, lam_st, c_st = stabilised(p, sig)
@@ -144,7 +152,8 @@ class SectionForces(eqx.Module):
             if self.has_drift:  # a scale drifting over the run (Corrections: 1 / (1 + drift (t - t_mid)))
                 t_rel = jnp.arange(meas.shape[0], dtype=meas.dtype)[:, None] * self.h - 0.5 * (self.span[1] - self.span[0])
                 corrected = corrected / (1.0 + self.corr[3][None, :] * t_rel)
-            f_ex, lam_ex, c_ex = stabilised(self.params_ext, SampledSignal(self.t0, self.h, corrected))
+            f_ex, lam_ex, c_ex = stabilised(self.params_ext, SampledSignal(self.t0, self.h, corrected),
+                                            self.nonlinear_ext)
             cols += [f_st, f_ex]
             code = jnp.maximum(code, jnp.maximum(c_st, c_ex))
         else:
@@ -185,7 +194,7 @@ def upsample_forces(forces, m: int) -> np.ndarray:
 
 
 def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corrections: Corrections,
-                         spring: dict, h: float) -> SectionForces:
+                         spring: dict, h: float, nonlinear_ext: dict | None = None) -> SectionForces:
     """A :class:`SectionForces` for a run (numpy inputs; ``pitch`` (n, 3) or None)."""
     t = np.asarray(t, float)
     dt = float((t[-1] - t[0]) / (t.size - 1))
@@ -200,4 +209,10 @@ def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corre
         ts=jnp.asarray(t), params=to_p(params), params_ext=to_p(params_ext), corr=jnp.asarray(corr),
         spring=jnp.asarray([spring["k_rot"], spring["d_rot"]], jnp.float64),
         t0=float(t[0]), dt=dt, h=dt / m, m=m, span=(float(t[0]), float(t[-1])), has_pitch=has_pitch,
-        has_drift=bool(np.any(corr[3] != 0.0)))
+        has_drift=bool(np.any(corr[3] != 0.0)), nonlinear_ext=_nonlinear_of(nonlinear_ext))
+
+
+def _nonlinear_of(d: dict | None):
+    """The extended model's nonlinear terms as a pytree of float64 arrays, None where it has none."""
+    nl = NonlinearSuspension.from_json(d)
+    return None if nl is None else jax.tree_util.tree_map(lambda v: jnp.asarray(v, jnp.float64), nl)

@@ -97,6 +97,16 @@ class NonlinearSuspension(NamedTuple):
     stop_u4: float = 0.0
     lift_off: bool = False       # road-driven tyre forces cannot pull
 
+    @classmethod
+    def from_json(cls, d: dict | None) -> "NonlinearSuspension | None":
+        """The chassis terms of a report's ``extended_model.nonlinear`` (``damper_ratio3``,
+        ``cubic4``, ``stop_k3``/``stop_u3``, ...); None where it has none (tyre lift-off alone acts
+        on road-driven tyre forces only, never on a force-driven model)."""
+        keys = [k for k in (d or {}) if k in cls._fields and k != "lift_off"]
+        if not keys:
+            return None
+        return cls(**{k: float(d[k]) for k in keys})
+
 
 def _nonlinear_law(k, d, s, ds, s0, rho, cubic, stop_k, stop_u):
     """One chassis spring-damper with the nonlinear terms (see :class:`NonlinearSuspension`)."""
@@ -207,23 +217,24 @@ def road_driven_rhs(t, xbar, params: HalfCarParams, zeta, dzeta, linear: bool = 
 
 
 def prescribed_pitch_rhs(
-    t, xhat, params: HalfCarParams, f1, f2, beta, dbeta, linear: bool = False
+    t, xhat, params: HalfCarParams, f1, f2, beta, dbeta, linear: bool = False, nonlinear=None
 ):
     """Right-hand side of the force-driven half-car with prescribed pitch (A.5), 8 states.
 
     ``xhat = [z1, z2, z3, z1', z2', z3', zeta1, zeta2]``; ``beta, dbeta`` are the prescribed pitch
-    angle and rate at ``t``, ``f1, f2`` the contact forces. The system is linear in ``xhat``.
+    angle and rate at ``t``, ``f1, f2`` the contact forces. The system is linear in ``xhat``
+    (with ``nonlinear``, a :class:`NonlinearSuspension`, it is not).
     """
     p = params
     q = jnp.stack([xhat[0], xhat[1], xhat[2], jnp.asarray(beta, dtype=xhat.dtype)])
     dq = jnp.stack([xhat[3], xhat[4], xhat[5], jnp.asarray(dbeta, dtype=xhat.dtype)])
-    ddz1, ddz2, ddz3, _ = _accelerations(q, dq, p, f1, f2, linear)
+    ddz1, ddz2, ddz3, _ = _accelerations(q, dq, p, f1, f2, linear, nonlinear=nonlinear)
     dzeta1 = (p.k1 * (xhat[0] - xhat[6]) + p.d1 * xhat[3] - f1) / p.d1
     dzeta2 = (p.k2 * (xhat[1] - xhat[7]) + p.d2 * xhat[4] - f2) / p.d2
     return jnp.stack([xhat[3], xhat[4], xhat[5], ddz1, ddz2, ddz3, dzeta1, dzeta2])
 
 
-def enforced_moment(xhat, params: HalfCarParams, beta, dbeta, ddbeta, linear: bool = False):
+def enforced_moment(xhat, params: HalfCarParams, beta, dbeta, ddbeta, linear: bool = False, nonlinear=None):
     """Enforced moment ``lambda = I beta'' - cos(beta) (b f3 - a f4)`` of the prescribed pitch.
 
     ``xhat`` is an A.5 state (or a trajectory ``(n, 8)`` with ``beta, dbeta, ddbeta`` of shape
@@ -234,7 +245,7 @@ def enforced_moment(xhat, params: HalfCarParams, beta, dbeta, ddbeta, linear: bo
     xhat = jnp.asarray(xhat)
     q = (xhat[..., 0], xhat[..., 1], xhat[..., 2], beta)
     dq = (xhat[..., 3], xhat[..., 4], xhat[..., 5], dbeta)
-    f3, f4 = spring_forces(q, dq, p, linear)
+    f3, f4 = spring_forces(q, dq, p, linear, nonlinear)
     _, c = _sin_cos(jnp.asarray(beta), linear)
     return p.I * ddbeta - c * (p.b * f3 - p.a * f4)
 

@@ -147,7 +147,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     sim_err = enforced_terms(prob_lin, model, res0)
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
-        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain)
+        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, form["correction"])
 
     report = {
         "schema": SCHEMA,
