@@ -97,12 +97,24 @@ def _topic(spec):
     return spec.split(".")[0]
 
 
+def _orientation(m):
+    """The quaternion of a sensor_msgs/Imu, nav_msgs/Odometry, geometry_msgs/PoseStamped or
+    geometry_msgs/TransformStamped message."""
+    if hasattr(m, "orientation"):
+        return m.orientation
+    if hasattr(m, "transform"):
+        return m.transform.rotation
+    return m.pose.pose.orientation if hasattr(m.pose, "pose") else m.pose.orientation
+
+
 def read_rosbag(path, entry):
     from rosbags.highlevel import AnyReader
+    from rosbags.typesys import Stores, get_typestore
 
     gtopic, rtopic = _topic(entry["gyro"]), _topic(entry["ref"])
     tg, w, tq, q = [], [], [], []
-    with AnyReader([Path(path)]) as rd:
+    # a ROS 2 bag without message definitions inside needs the standard ones
+    with AnyReader([Path(path)], default_typestore=get_typestore(Stores.ROS2_HUMBLE)) as rd:
         conns = [c for c in rd.connections if c.topic in (gtopic, rtopic)]
         for c, _, raw in rd.messages(connections=conns):
             m = rd.deserialize(raw, c.msgtype)
@@ -111,7 +123,7 @@ def read_rosbag(path, entry):
                 a = m.angular_velocity
                 tg.append(t); w.append((a.x, a.y, a.z))
             if c.topic == rtopic:
-                o = m.orientation if hasattr(m, "orientation") else m.pose.pose.orientation
+                o = _orientation(m)
                 tq.append(t); q.append((o.w, o.x, o.y, o.z))
     tg, w, tq, q = map(np.asarray, (tg, w, tq, q))
     ig, iq = np.argsort(tg, kind="stable"), np.argsort(tq, kind="stable")
@@ -350,7 +362,8 @@ def jaxdrift_args(entry):
     kind = entry["reader"]
     if kind == "rosbag":
         g, r = _topic(entry["gyro"]), _topic(entry["ref"])
-        m = [f"w{a}={g}.angular_velocity.{a}" for a in "xyz"] + [f"q{a}={r}.orientation.{a}" for a in "wxyz"]
+        field = entry["ref"].split(".", 1)[1] if "." in entry["ref"] else "orientation"  # e.g. transform.rotation
+        m = [f"w{a}={g}.angular_velocity.{a}" for a in "xyz"] + [f"q{a}={r}.{field}.{a}" for a in "wxyz"]
         return ["--map", ",".join(m)]
     if kind == "mdf":
         return ["--map", "wx=AngularRateX,wy=AngularRateY,wz=AngularRateZ"]
