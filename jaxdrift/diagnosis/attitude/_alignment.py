@@ -12,8 +12,8 @@ reference samples over their step, at the step's midpoint) and the gyro's:
 1. the **clock offset** tau (the reference's stamps late by tau): the lag that best matches the rate
    magnitudes (the reference's rates over spans of :data:`SPAN_S`), which no frame rotation changes (a grid search over +-:data:`MAX_OFFSET_S`, or half a reference step where that is longer, at a quarter
    of the gyro's step, refined by a parabola);
-2. the **frame rotation** R (gyro rate = R x reference body rate + bias): the linear least-squares map
-   with a bias, projected on the nearest rotation (polar decomposition);
+2. the **frame rotation** R (gyro rate = R x reference body rate + bias): the rotation that fits the
+   centred rates best in least squares (Kabsch);
 
 each with a 95 % interval from :data:`N_BLOCKS` time blocks (the spread of the block estimates over
 sqrt(blocks)). Both are applied (the reference re-stamped and turned into the gyro's frame) where
@@ -136,14 +136,16 @@ def _axis_convention(wg, wb):
 
 
 def _rotation(wg, wb):
-    """R (3x3) and bias with wg = R wb + b, R the nearest rotation to the least-squares map."""
-    m = np.isfinite(wg).all(1)
-    X = np.column_stack([wb[m], np.ones(m.sum())])
-    coef, *_ = np.linalg.lstsq(X, wg[m], rcond=None)
-    M = coef[:3].T
-    U, _, Vt = np.linalg.svd(M)
-    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))])
-    return U @ D @ Vt
+    """R (3x3) with wg = R wb + b: the rotation that fits the rates best in least squares, the bias
+    taken out by centring both (Kabsch, ``scipy Rotation.align_vectors``). Not the rotation nearest
+    to the general least-squares map: that map divides by the rates' covariance, so where a body
+    turns mostly about one axis the noise of the other two is magnified into a rotation (on a PX4
+    flight yawing at up to 3.6 rad/s against its 20 Hz attitude: 16 degrees between two frames
+    that are one, where this fit gives 0.2)."""
+    m = np.isfinite(wg).all(1) & np.isfinite(wb).all(1)
+    a, b = wg[m] - np.mean(wg[m], 0), wb[m] - np.mean(wb[m], 0)
+    rot, _ = Rotation.align_vectors(a, b)
+    return rot.as_matrix()
 
 
 def alignment_step(run) -> Alignment:
