@@ -28,6 +28,7 @@ back), that axis convention is applied and reported (``axis_convention``).
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -144,7 +145,11 @@ def _rotation(wg, wb):
     that are one, where this fit gives 0.2)."""
     m = np.isfinite(wg).all(1) & np.isfinite(wb).all(1)
     a, b = wg[m] - np.mean(wg[m], 0), wb[m] - np.mean(wb[m], 0)
-    rot, _ = Rotation.align_vectors(a, b)
+    with warnings.catch_warnings():
+        # a body turned about one axis does not fix the rotation (scipy warns): the time blocks'
+        # spread then says it is not determined, and it is not applied
+        warnings.simplefilter("ignore", UserWarning)
+        rot, _ = Rotation.align_vectors(a, b)
     return rot.as_matrix()
 
 
