@@ -438,6 +438,12 @@ def heldout2_corpus_table(root: Path) -> str:
     return _corpus_table(load(root, "docs/validation/heldout2_corpus.json"))
 
 
+@block("heldout3-corpus-table", "docs/validation/heldout3_corpus.json")
+def heldout3_corpus_table(root: Path) -> str:
+    """The third held-out recordings (``tests/data/heldout3/SOURCES.toml``), as the corpus table."""
+    return _corpus_table(load(root, "docs/validation/heldout3_corpus.json"))
+
+
 # ---------------------------------------------------------------------------------------------
 # schemas: from the code's catalogue and from reports the code wrote
 # ---------------------------------------------------------------------------------------------
