@@ -80,6 +80,8 @@ NONLINEAR = [("damper_asymmetry", "d3"), ("damper_asymmetry", "d4"), ("progressi
 SENSOR = [(c, ch) for c in ("force_offset", "force_scale", "force_delay") for ch in ("f1", "f2")]
 #: a force transducer's gain drifting over the run (``design_gain_drift``), alone and with an offset
 GAIN_DRIFT = [("force_gain_drift", "f1"), ("force_gain_drift", "f2")]
+#: a share of the other wheel's force read in a channel (``design_crosstalk``)
+CROSSTALK = [("force_crosstalk", "f1"), ("force_crosstalk", "f2")]
 
 
 # ----------------------------------------------------------------------------- road
@@ -317,6 +319,8 @@ def draw_effect(rng, cause: str, target: str | None, p: dict, duration: float | 
         return {"cause": cause, "channel": target, "value": sign * _loguniform(rng, 1e-4, 1e-2)}
     if cause == "parameter_error":
         return {"cause": cause, "parameter": target, "value": 1.0 + sign * _loguniform(rng, 5e-3, 0.2)}
+    if cause == "force_crosstalk":  # 0.2-5 % of the other wheel's force read in this channel
+        return {"cause": cause, "channel": target, "value": sign * _loguniform(rng, 2e-3, 5e-2)}
     # nonlinear suspension effects at sizes engineers meet; the physical size of the last three
     # depends on the run's travel and is set by ``generate`` (a linear pre-run on the same road)
     if cause == "damper_asymmetry":  # rebound/compression ratio in 0.6-1.6 (1 is no effect)
@@ -390,6 +394,20 @@ def design_gain_drift(n: int, seed: int, free_share: float = 0.2) -> list[dict]:
     return _shuffled(plan, seed, "gain_drift")
 
 
+def design_crosstalk(n: int, seed: int, free_share: float = 0.2) -> list[dict]:
+    """``n`` cases for crosstalk between the force channels: ``free_share`` effect-free (half
+    without, half with force noise), the rest half the crosstalk alone (``CROSSTALK``), half paired
+    with an offset or a scale on either channel; shuffled."""
+    n_free = round(free_share * n)
+    n_single = round(0.5 * (n - n_free))
+    n_pair = n - n_free - n_single
+    plan = [("clean", ())] * (n_free // 2) + [("noise", ())] * (n_free - n_free // 2)
+    plan += [("single", (CROSSTALK[i % 2],)) for i in range(n_single)]
+    plan += [("pair", (CROSSTALK[i % 2], (("force_offset", "force_scale")[(i // 2) % 2], ("f1", "f2")[(i // 4) % 2])))
+             for i in range(n_pair)]
+    return _shuffled(plan, seed, "crosstalk")
+
+
 def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500, 600, 1000, 1200, 2000),
               max_samples: int | None = None):
     """Draw everything else of a case (vehicle, road, speed, rate, channels, sizes, noise);
@@ -411,7 +429,7 @@ def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500,
     effects = []
     if case["stratum"] == "single":
         effects.append(draw_effect(rng, *case["what"][0], nominal, duration=dur))
-    elif case["stratum"] == "pair" and case.get("design") in ("nonlinear", "gain_drift"):
+    elif case["stratum"] == "pair" and case.get("design") in ("nonlinear", "gain_drift", "crosstalk"):
         effects += [draw_effect(rng, *w, nominal, duration=dur) for w in case["what"]]
     elif case["stratum"] == "pair":
         c1, c2 = case["what"]
@@ -512,6 +530,13 @@ def generate(case: dict) -> tuple[dict, dict]:
     for e in case["effects"]:
         if e["cause"] == "force_delay":
             meas[e["channel"]] = signals(p, road, v, x0, sol, tau - e["value"], scale, lift)[e["channel"]]
+    for e in case["effects"]:  # crosstalk: the other channel's true force, at this channel's time
+        if e["cause"] == "force_crosstalk":
+            ch = e["channel"]
+            other = "f2" if ch == "f1" else "f1"
+            lag = next((d["value"] for d in case["effects"] if d["cause"] == "force_delay" and d["channel"] == ch), None)
+            src = true[other] if lag is None else signals(p, road, v, x0, sol, tau - lag, scale, lift)[other]
+            meas[ch] = meas[ch] + e["value"] * src
     for e in case["effects"]:
         if e["cause"] == "force_scale":
             meas[e["channel"]] = meas[e["channel"]] * e["value"]

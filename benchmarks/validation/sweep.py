@@ -585,12 +585,13 @@ def main(argv=None):
     ap.add_argument("--cache", help="folder of per-run results (default OUT/cache/<kind>-<seed>)")
     ap.add_argument("--prefix", default="", help="prefix of the summary files; the committed ones are named by the commit that diagnosed them, "
                     "e.g. '20e4450-'")
-    ap.add_argument("--design", choices=("standard", "nonlinear", "gain_drift"), default="standard",
+    ap.add_argument("--design", choices=("standard", "nonlinear", "gain_drift", "crosstalk"), default="standard",
                     help="vehicle: the stratified design of today's causes, the nonlinear suspension "
                          "design (gen_vehicle.design_nonlinear: effect-free runs, nonlinear effects alone "
                          "and paired with a sensor effect) or the gain-drift design "
                          "(gen_vehicle.design_gain_drift: effect-free runs, a drifting force gain alone "
-                         "and with an offset)")
+                         "and with an offset) or the crosstalk design (gen_vehicle.design_crosstalk: a share "
+                         "of one force channel read in the other, alone and with an offset or a scale)")
     ap.add_argument("--free-share", type=float, default=None,
                     help="nonlinear design: the share of effect-free runs (default 0.4; 0 for a calibration "
                          "sweep of the nonlinear causes' intervals)")
@@ -613,7 +614,8 @@ def main(argv=None):
     os.makedirs(a.out, exist_ok=True)
     sizing = SIZING[a.kind]
     cases = {"standard": gen.design, "nonlinear": getattr(gen, "design_nonlinear", None),
-             "gain_drift": getattr(gen, "design_gain_drift", None)}[design]
+             "gain_drift": getattr(gen, "design_gain_drift", None),
+             "crosstalk": getattr(gen, "design_crosstalk", None)}[design]
     cases = cases(a.n, a.seed) if a.free_share is None else cases(a.n, a.seed, free_share=a.free_share)
     i, k = (int(x) for x in a.chunk.split("/"))
     todo = [c for c in cases if c["index"] % k == i

@@ -30,7 +30,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..ensemble._noise import remove_input_effects, white_noise
-from ..io._corrections import Corrections
+from ..io._corrections import Corrections, unmix
 from ..models._halfcar import NonlinearSuspension, pitch_spring_torque, spring_forces
 from ..models._params import HalfCarParams
 from ..solvers._inputs import SampledSignal
@@ -107,7 +107,7 @@ class SectionForces(eqx.Module):
     ts: jax.Array            # (n,) sample times
     params: HalfCarParams
     params_ext: HalfCarParams
-    corr: jax.Array          # (4, 2): offset, scale, delay, drift per force channel (Corrections.as_rows)
+    corr: jax.Array          # (5, 2): offset, scale, delay, drift, leak per force channel (Corrections.as_rows)
     spring: jax.Array        # (2,): k_rot, d_rot
     t0: float = eqx.field(static=True)
     dt: float = eqx.field(static=True)
@@ -116,6 +116,7 @@ class SectionForces(eqx.Module):
     span: tuple = eqx.field(static=True)
     has_pitch: bool = eqx.field(static=True)
     has_drift: bool = eqx.field(static=True, default=False)  # a correction drifts (corr[3] != 0)
+    leaks: tuple = eqx.field(static=True, default=(0.0, 0.0))  # crosstalk (Corrections.leaks)
     nonlinear_ext: NonlinearSuspension | None = None  # the extended model's nonlinear terms
 
     def __call__(self, key, idx, sigma):
@@ -152,6 +153,8 @@ class SectionForces(eqx.Module):
             if self.has_drift:  # a scale drifting over the run (Corrections: 1 / (1 + drift (t - t_mid)))
                 t_rel = jnp.arange(meas.shape[0], dtype=meas.dtype)[:, None] * self.h - 0.5 * (self.span[1] - self.span[0])
                 corrected = corrected / (1.0 + self.corr[3][None, :] * t_rel)
+            if any(self.leaks):  # crosstalk between the channels (Corrections.unmix)
+                corrected = jnp.stack(unmix(corrected[:, 0], corrected[:, 1], *self.leaks), axis=1)
             f_ex, lam_ex, c_ex = stabilised(self.params_ext, SampledSignal(self.t0, self.h, corrected),
                                             self.nonlinear_ext)
             cols += [f_st, f_ex]
@@ -209,7 +212,7 @@ def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corre
         ts=jnp.asarray(t), params=to_p(params), params_ext=to_p(params_ext), corr=jnp.asarray(corr),
         spring=jnp.asarray([spring["k_rot"], spring["d_rot"]], jnp.float64),
         t0=float(t[0]), dt=dt, h=dt / m, m=m, span=(float(t[0]), float(t[-1])), has_pitch=has_pitch,
-        has_drift=bool(np.any(corr[3] != 0.0)), nonlinear_ext=_nonlinear_of(nonlinear_ext))
+        has_drift=bool(np.any(corr[3] != 0.0)), leaks=corrections.leaks, nonlinear_ext=_nonlinear_of(nonlinear_ext))
 
 
 def _nonlinear_of(d: dict | None):

@@ -2,10 +2,12 @@
 
 A force channel's correction (``docs/measured-data.md``)::
 
-    true(t) = (measured(t + delay) - offset) * gain / (1 + drift * (t - t_mid)),   gain = 1 / scale
+    read(t) = (measured(t + delay) - offset) * gain / (1 + drift * (t - t_mid)),   gain = 1 / scale
+    read_1 = true_1 + leak_1 * true_2,   read_2 = true_2 + leak_2 * true_1
 
 ``t_mid`` is the middle of the run (``(t[0] + t[-1]) / 2``), so a drift of the scale over the run
-leaves its mean scale in ``scale``. A gyro channel's correction is ``true = (measured - bias) /
+leaves its mean scale in ``scale``. ``leak`` is the share of the other force channel read in this
+one (crosstalk); the true forces are the exact solution of the two lines (:func:`unmix`). A gyro channel's correction is ``true = (measured - bias) /
 scale``. Reports carry the JSON form (``offset``, ``scale``, ``delay``, and ``drift`` where it is
 not zero; ``bias``, ``scale`` for gyros); everything else (the diagnosis, durability, the series
 output, the campaign, the generators) uses these records.
@@ -24,16 +26,30 @@ import numpy as np
 
 FORCE_CHANNELS = ("f1", "f2")
 _JSON_KEYS = ("offset", "scale", "delay")
+_OPTIONAL_KEYS = ("drift", "leak")
+
+
+def unmix(g1, g2, leak1: float, leak2: float):
+    """The true forces ``(f1, f2)`` from the read ones ``g1 = f1 + leak1 f2``, ``g2 = f2 + leak2 f1``
+    (numpy or jax arrays, spline coefficients: anything linear). Without crosstalk the inputs are
+    returned as they are."""
+    if leak1 == 0.0 and leak2 == 0.0:
+        return g1, g2
+    det = 1.0 - leak1 * leak2
+    return (g1 - leak1 * g2) / det, (g2 - leak2 * g1) / det
 
 
 @dataclass(frozen=True)
 class ForceCorrection:
-    """One force channel: ``offset`` [N], ``gain`` = 1/scale, ``delay`` [s], ``drift`` [1/s]."""
+    """One force channel: ``offset`` [N], ``gain`` = 1/scale, ``delay`` [s], ``drift`` [1/s],
+    ``leak``: the share of the other channel's true force this channel reads (crosstalk; undone by
+    :class:`Corrections`, which sees both channels)."""
 
     offset: float = 0.0
     gain: float = 1.0
     delay: float = 0.0
     drift: float = 0.0
+    leak: float = 0.0
 
     @property
     def scale(self) -> float:
@@ -51,14 +67,15 @@ class ForceCorrection:
         return 1.0 / (1.0 + self.drift * (t - 0.5 * (t[0] + t[-1])))
 
     def finish(self, shifted: np.ndarray, t=None) -> np.ndarray:
-        """The true-force estimate from the measured samples already shifted by ``delay``
-        (``t``: their times, needed only with a drift)."""
+        """The channel's read force (the true one where nothing leaks in) from the measured samples
+        already shifted by ``delay`` (``t``: their times, needed only with a drift)."""
         out = (shifted - self.offset) * self.gain
         return out if self.drift == 0.0 else out * self.drift_factor(t)
 
     def apply(self, t, measured, delay_method: str = "linear") -> np.ndarray:
-        """The true-force estimate on the samples ``t`` of ``measured``. ``delay_method``:
-        ``"linear"`` interpolation, the end value held beyond the run."""
+        """The channel's read force on the samples ``t`` of ``measured`` (the true one where
+        nothing leaks in: :meth:`Corrections.apply` undoes a leak). ``delay_method``: ``"linear"``
+        interpolation, the end value held beyond the run."""
         if delay_method != "linear":
             raise ValueError(f"delay_method must be 'linear' here, got {delay_method!r}")
         t = np.asarray(t, dtype=float)
@@ -69,18 +86,21 @@ class ForceCorrection:
 
     def to_json(self) -> dict:
         out = {"offset": float(self.offset), "scale": float(1.0 / self.gain), "delay": float(self.delay)}
-        if self.drift != 0.0:
-            out["drift"] = float(self.drift)
+        for k in _OPTIONAL_KEYS:
+            if getattr(self, k) != 0.0:
+                out[k] = float(getattr(self, k))
         return out
 
     @classmethod
     def from_json(cls, d: dict | None) -> "ForceCorrection":
         d = d or {}
-        unknown = set(d) - set(_JSON_KEYS) - {"drift"}
+        unknown = set(d) - set(_JSON_KEYS) - set(_OPTIONAL_KEYS)
         if unknown:
-            raise ValueError(f"unknown correction keys {sorted(unknown)}; expected {list(_JSON_KEYS)} and 'drift'")
+            raise ValueError(f"unknown correction keys {sorted(unknown)}; expected {list(_JSON_KEYS)} "
+                             f"and optionally {list(_OPTIONAL_KEYS)}")
         return cls(offset=float(d.get("offset", 0.0)), gain=1.0 / float(d.get("scale", 1.0)),
-                   delay=float(d.get("delay", 0.0)), drift=float(d.get("drift", 0.0)))
+                   delay=float(d.get("delay", 0.0)), drift=float(d.get("drift", 0.0)),
+                   leak=float(d.get("leak", 0.0)))
 
 
 @dataclass(frozen=True)
@@ -106,13 +126,23 @@ class Corrections:
         """The same delays, nothing else (the shifted measured forces)."""
         return Corrections(**{ch: ForceCorrection(delay=c.delay) for ch, c in self.items()})
 
+    @property
+    def leaks(self) -> tuple[float, float]:
+        """The crosstalk shares ``(leak of f2 in f1, leak of f1 in f2)``."""
+        return self.f1.leak, self.f2.leak
+
+    def unmix(self, read: dict) -> dict:
+        """The true forces from the channels' read ones (:func:`unmix`; unchanged without crosstalk)."""
+        f1, f2 = unmix(read["f1"], read["f2"], *self.leaks)
+        return {"f1": f1, "f2": f2}
+
     def apply(self, t, forces: dict, delay_method: str = "linear") -> dict[str, np.ndarray]:
-        return {ch: c.apply(t, forces[ch], delay_method) for ch, c in self.items()}
+        return self.unmix({ch: c.apply(t, forces[ch], delay_method) for ch, c in self.items()})
 
     def as_rows(self) -> np.ndarray:
-        """``(4, 2)``: offset, scale, delay, drift (rows) per force channel (columns)."""
-        return np.array([[c.offset for _, c in self.items()], [c.scale for _, c in self.items()],
-                         [c.delay for _, c in self.items()], [c.drift for _, c in self.items()]], dtype=float)
+        """``(5, 2)``: offset, scale, delay, drift, leak (rows) per force channel (columns)."""
+        return np.array([[getattr(c, k) for _, c in self.items()] for k in ("offset", "scale", "delay", "drift", "leak")],
+                        dtype=float)
 
     def to_json(self) -> dict:
         return {ch: c.to_json() for ch, c in self.items()}

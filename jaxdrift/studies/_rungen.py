@@ -15,22 +15,16 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..diagnosis.vehicle import (FORCE_DELAY, FORCE_GAIN_DRIFT, FORCE_NOISE, FORCE_OFFSET, FORCE_SCALE,
-                                 PARAMETER_ERROR)
+from ..diagnosis.vehicle import FORCE_NOISE, VEHICLE_CAUSES, kind_named
 from ..io._csvio import DEFAULT_MODEL
 
 __all__ = ["draw_effects", "simulate_true_run", "apply_sensor_effects", "make_run", "SIZES",
            "draw_sweep_case"]
 
-#: (low, high) magnitude of each effect kind; the sign is drawn separately where it matters
-SIZES = {
-    "realistic": {FORCE_NOISE.name: (10.0, 40.0), FORCE_OFFSET.name: (30.0, 120.0),
-                  FORCE_SCALE.name: (0.01, 0.05), FORCE_DELAY.name: (0.002, 0.010),
-                  PARAMETER_ERROR.name: (0.04, 0.10), FORCE_GAIN_DRIFT.name: (5e-4, 2e-3)},
-    "small": {FORCE_NOISE.name: (2.0, 5.0), FORCE_OFFSET.name: (8.0, 20.0),
-              FORCE_SCALE.name: (0.003, 0.008), FORCE_DELAY.name: (0.0006, 0.002),
-              PARAMETER_ERROR.name: (0.015, 0.03), FORCE_GAIN_DRIFT.name: (1.5e-4, 4e-4)},
-}
+#: (low, high) magnitude of each effect kind (the kinds' ``draw_sizes``); the sign is drawn
+#: separately where it matters
+SIZES = {size: {k.name: k.draw_sizes[size] for k in (FORCE_NOISE, *VEHICLE_CAUSES) if size in k.draw_sizes}
+         for size in ("realistic", "small")}
 
 #: parameters a run reveals, by the channels it has (without spring travel the chassis
 #: spring stiffness and damping barely change the forces the wheels pass on)
@@ -62,31 +56,22 @@ def draw_effects(seed: int, *, n_systematic: int = 1, size: str = "realistic",
     rng = np.random.default_rng(seed)
     lo_hi = SIZES[size]
     params = revealed_parameters(channels)
-    pool = list(kinds) if kinds is not None else [k.name for k in (FORCE_OFFSET, FORCE_SCALE, FORCE_DELAY,
-                                                                  PARAMETER_ERROR)]
-    if not params and PARAMETER_ERROR.name in pool:
-        pool.remove(PARAMETER_ERROR.name)
+    pool = list(kinds) if kinds is not None else [k.name for k in VEHICLE_CAUSES if k.drawn_by_default]
+    pool = [k for k in pool if params or kind_named(k).target_key != "parameter"]
     out = []
     used = set()
     while len([e for e in out if e["cause"] != FORCE_NOISE.name]) < n_systematic:
-        kind = pool[rng.integers(len(pool))]
-        lo, hi = lo_hi[kind]
+        name = pool[rng.integers(len(pool))]
+        kind = kind_named(name)
+        lo, hi = lo_hi[name]
         mag = rng.uniform(lo, hi)
         sign = 1.0 if rng.random() < 0.5 else -1.0
-        if kind == PARAMETER_ERROR.name:
-            target = params[rng.integers(len(params))]
-            e = {"cause": kind, "parameter": target, "value": 1.0 + sign * mag}
-        else:
-            target = ("f1", "f2")[rng.integers(2)]
-            if kind == FORCE_SCALE.name:
-                val = 1.0 + sign * mag
-            elif kind == FORCE_DELAY.name:
-                val = mag  # sensors lag; they do not lead
-            else:
-                val = sign * mag
-            e = {"cause": kind, "channel": target, "value": val}
-        key = (kind, target)
-        if key in used or (kind != PARAMETER_ERROR.name and any(k[0] == kind for k in used)):
+        targets = params if kind.target_key == "parameter" else ("f1", "f2")
+        target = targets[rng.integers(len(targets))]
+        e = {"cause": name, kind.target_key: target, "value": kind.draw_value(mag, sign)}
+        key = (name, target)
+        # one effect per channel kind (two would add up to one); parameters may repeat kinds
+        if key in used or (kind.target_key != "parameter" and any(k[0] == name for k in used)):
             continue
         used.add(key)
         out.append(e)
@@ -167,26 +152,40 @@ def simulate_true_run(true_params: dict, *, duration: float = 20.0, fs: float = 
     return out
 
 
-def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = None) -> dict:
-    """Measured forces from the true ones: ``(1 + drift (t - t_mid)) scale true(t - delay) + offset
-    + noise``.
+class _Reader:
+    """``read(ch)``: the true forces at the times channel ``ch`` reads them; ``read.t``: the
+    sample times (what a kind's ``forward`` is given)."""
 
-    ``delayed``: {channel: true force at t - delay} (from :func:`simulate_true_run`'s extra
-    times); noise from ``numpy.random.default_rng(seed)``.
+    def __init__(self, true: dict, delayed: dict | None):
+        self.t = np.asarray(true["t"], dtype=float)
+        self._true = {ch: np.asarray(true[ch], dtype=float) for ch in ("f1", "f2")}
+        self._delayed = delayed or {}
+
+    def __call__(self, ch: str) -> dict:
+        d = self._delayed.get(ch)
+        if d is None:
+            return self._true
+        return d if isinstance(d, dict) else {**self._true, ch: np.asarray(d, dtype=float)}
+
+
+def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = None) -> dict:
+    """Measured forces from the true ones: each effect's kind applies its forward effect
+    (``forward``) in the order of the sensor's chain (``forward_stage``: reading time, crosstalk,
+    gain, offset), then white noise: ``(1 + drift (t - t_mid)) scale true(t - delay) + offset +
+    noise`` for the kinds of the measured-data contract.
+
+    ``delayed``: {channel: the true forces ``{"f1", "f2"}`` (or that channel's alone) at the times
+    the channel reads them} (from :func:`simulate_true_run`'s extra times); noise from
+    ``numpy.random.default_rng(seed)``.
     """
     meas = {ch: np.array(true[ch], dtype=float) for ch in ("f1", "f2")}
-    for e in effects:
-        if e["cause"] == FORCE_DELAY.name:
-            meas[e["channel"]] = np.array(delayed[e["channel"]], dtype=float)
-    t = np.asarray(true["t"], dtype=float)
-    for e in effects:
-        if e["cause"] == FORCE_SCALE.name:
-            meas[e["channel"]] = meas[e["channel"]] * float(e["value"])
-        if e["cause"] == FORCE_GAIN_DRIFT.name:  # the gain drifts linearly about the run's middle
-            meas[e["channel"]] = meas[e["channel"]] * (1.0 + float(e["value"]) * (t - 0.5 * (t[0] + t[-1])))
-    for e in effects:
-        if e["cause"] == FORCE_OFFSET.name:
-            meas[e["channel"]] = meas[e["channel"]] + float(e["value"])
+    read = _Reader(true, delayed)
+    sensor = [(kind_named(e["cause"]), e) for e in effects if e["cause"] != FORCE_NOISE.name]
+    sensor = [(k, e) for k, e in sensor if k.is_sensor]
+    for stage in sorted({k.forward_stage for k, _ in sensor}):
+        for k, e in sensor:
+            if k.forward_stage == stage:
+                meas = k.forward(meas, e["channel"], float(e["value"]), read)
     rng = np.random.default_rng(seed)
     for e in effects:
         if e["cause"] == FORCE_NOISE.name:
@@ -206,20 +205,22 @@ def make_run(effects=(), *, model: dict | None = None, duration: float = 20.0, f
     """
     model = dict(DEFAULT_MODEL if model is None else model)
     true_params = dict(model)
-    for e in effects:
-        if e["cause"] == PARAMETER_ERROR.name:
-            true_params[e["parameter"]] = model[e["parameter"]] * float(e["value"])
+    kinds = [(kind_named(e["cause"]), e) for e in effects if e["cause"] != FORCE_NOISE.name]
+    for k, e in kinds:
+        if not k.is_sensor:
+            true_params = k.true_model(true_params, e[k.target_key], float(e["value"]))
     n = int(round(duration * fs)) + 1
     t = np.arange(n) / fs
-    delays = [e for e in effects if e["cause"] == FORCE_DELAY.name]
-    extra = np.concatenate([t - float(e["value"]) for e in delays]) if delays else None
+    shifts = [(e["channel"], k.time_shift(float(e["value"]))) for k, e in kinds if k.is_sensor]
+    shifts = [(ch, d) for ch, d in shifts if d != 0.0]
+    extra = np.concatenate([t - d for _, d in shifts]) if shifts else None
     true = simulate_true_run(true_params, duration=duration, fs=fs, speed=speed,
                              road_class=road_class, seed=seed, hill_height=hill_height,
                              extra_times=extra)
     delayed = {}
-    for i, e in enumerate(delays):
+    for i, (ch, _) in enumerate(shifts):
         sl = slice(i * n, (i + 1) * n)
-        delayed[e["channel"]] = true["extra"][e["channel"]][sl]
+        delayed[ch] = {c: true["extra"][c][sl] for c in ("f1", "f2")}
     meas = apply_sensor_effects(true, effects, seed + 7919, delayed)
     cols = {"t": t, "f1": meas["f1"], "f2": meas["f2"]}
     for c in channels:

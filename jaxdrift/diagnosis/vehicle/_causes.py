@@ -8,8 +8,7 @@ the method part of its interval, how it changes the model or the measured forces
 to a true signal, and the words of its evidence. The rest of the diagnosis, the campaign, durability
 and the generators ask the kind; none of them spells a kind's name.
 
-Adding a cause: one subclass of :class:`CauseKind` here, registered in ``VEHICLE_CAUSES``, its entry
-in the generators, its tests (``docs/architecture.md``, "Adding a cause").
+Adding a cause: the numbered recipe in :class:`CauseKind`'s docstring.
 """
 
 from __future__ import annotations
@@ -33,7 +32,31 @@ ALPHA = 1e-3
 
 
 class CauseKind(abc.ABC):
-    """A kind of cause (abstract). Subclasses are final and instantiated once (the registry)."""
+    """A kind of cause (abstract). Subclasses are final and instantiated once (the registry).
+
+    Adding a kind (a sensor effect on a force channel or an error of a model parameter):
+
+    1. Write one ``@final`` subclass here: ``name`` (the report's cause), ``unit``, ``words``
+       (or :meth:`describe`), ``target_key`` (``"channel"`` or ``"parameter"``) and, where the
+       default does not fit, :meth:`candidates`, the coordinate ``theta`` (0 = no effect;
+       :meth:`to_estimate`, :meth:`to_theta`, :meth:`interval`), its range (``theta_range`` or
+       :meth:`bounds`), finite-difference ``step`` and ``practical`` floor.
+    2. Say what it changes (the inverse, the correction): a sensor kind returns the channel's
+       :class:`~jaxdrift.io._corrections.ForceCorrection` with its effect added (:meth:`adjust`:
+       a field of the record, so the diagnosis, the series output, durability and the campaign
+       all undo it by one formula); a parameter kind overrides :meth:`correct`.
+    3. Say what it does (the forward effect, for the generators): :meth:`forward` on the
+       measured forces at its ``forward_stage`` in the sensor's chain (or :meth:`true_model`
+       for the vehicle, :meth:`time_shift` if the channel reads at another time), and the sizes a
+       generator draws (``draw_sizes``, :meth:`draw_value`, ``drawn_by_default``).
+    4. Register the instance in ``VEHICLE_CAUSES`` (the order in which candidates are tried).
+    5. Test it: a case in ``tests/test_cause_contract.py`` (a run with its effect alone is found,
+       sized and corrected; a registered kind without a case fails), and the independent
+       generator (``benchmarks/validation/gen_vehicle.py``) taught the effect in its own code.
+
+    Nothing outside this module names a kind: the selection, the report, the campaign,
+    durability and the generators ask the registry and the kind.
+    """
 
     name: ClassVar[str]
     unit: ClassVar[str]
@@ -102,6 +125,34 @@ class CauseKind(abc.ABC):
         """A channel's correction with this sensor effect at ``theta`` added."""
         raise NotImplementedError(f"{self.name} changes the model, not a channel's correction")
 
+    # -- what a generator does to a true run (the forward effect, whose inverse is :meth:`correct`)
+    #: where the effect sits in a force sensor's chain, applied in this order: 0 the channel reads
+    #: the force at another time, 1 it reads some of the other channel, 2 its gain, 3 an offset
+    forward_stage: ClassVar[int] = 3
+    #: the (low, high) magnitude a generator draws (``jaxdrift.studies.draw_effects``), per size
+    #: profile ("realistic", "small"); the sign is drawn separately
+    draw_sizes: ClassVar[dict[str, tuple[float, float]]] = {}
+    #: in the generators' pool when no kinds are named (a kind with its own study design is not)
+    drawn_by_default: ClassVar[bool] = True
+
+    def draw_value(self, magnitude: float, sign: float) -> float:
+        """The report's value of an effect drawn with ``magnitude`` and ``sign``."""
+        return sign * magnitude
+
+    def time_shift(self, value: float) -> float:
+        """How much earlier than ``t`` the channel reads the force (a delay's value; 0 otherwise)."""
+        return 0.0
+
+    def forward(self, measured: dict, target: str, value: float, read) -> dict:
+        """The measured forces with this effect (``value`` as the report states it) on ``target``,
+        as new arrays. ``read(ch)``: the true forces ``{"f1", "f2"}`` at the times channel ``ch``
+        reads them, and ``read.t`` the sample times."""
+        raise NotImplementedError(f"{self.name} changes the vehicle, not the measured forces")
+
+    def true_model(self, model: dict, target: str, value: float) -> dict:
+        """The true vehicle's parameters with this effect (a sensor effect leaves them)."""
+        return model
+
     # -- words
     #: the cause in words (``str.format`` with ``target``, ``estimate``, ``ms`` = estimate x 1e3
     #: and ``pct`` = estimate x 100)
@@ -120,6 +171,10 @@ class ForceOffset(CauseKind):
     unit = "N"
     practical = 0.05
     step = 1.0
+    draw_sizes = {"realistic": (30.0, 120.0), "small": (8.0, 20.0)}
+
+    def forward(self, measured, target, value, read):
+        return {**measured, target: measured[target] + float(value)}
 
     def candidates(self):
         # the same offset on both forces: indistinguishable from a mass error without heave data
@@ -152,6 +207,14 @@ class ForceScale(CauseKind):
         return self.to_estimate(min(theta + half, 10.0)), self.to_estimate(max(theta - half, -0.99))
 
     theta_range = (-0.5, 1.0)
+    forward_stage = 2
+    draw_sizes = {"realistic": (0.01, 0.05), "small": (0.003, 0.008)}
+
+    def draw_value(self, magnitude, sign):
+        return 1.0 + sign * magnitude
+
+    def forward(self, measured, target, value, read):
+        return {**measured, target: measured[target] * float(value)}
 
     def adjust(self, c, theta):
         return replace(c, gain=c.gain * (1.0 + theta))
@@ -166,6 +229,17 @@ class ForceDelay(CauseKind):
     name = "force_delay"
     unit = "s"
     practical = None  # 1e-3 of the sample interval
+    forward_stage = 0
+    draw_sizes = {"realistic": (0.002, 0.010), "small": (0.0006, 0.002)}
+
+    def draw_value(self, magnitude, sign):
+        return magnitude  # sensors lag; they do not lead
+
+    def time_shift(self, value):
+        return float(value)
+
+    def forward(self, measured, target, value, read):
+        return {**measured, target: np.array(read(target)[target], dtype=float)}
 
     def bounds(self, pipe):
         lim = 0.5 * pipe.trim * pipe.h
@@ -192,6 +266,13 @@ class ForceGainDrift(CauseKind):
     unit = "1/s"
     practical = 1e-5
     step = 1e-5
+    forward_stage = 2
+    draw_sizes = {"realistic": (5e-4, 2e-3), "small": (1.5e-4, 4e-4)}
+    drawn_by_default = False  # its own study design (design_gain_drift)
+
+    def forward(self, measured, target, value, read):
+        t = read.t  # the gain drifts linearly about the run's middle
+        return {**measured, target: measured[target] * (1.0 + float(value) * (t - 0.5 * (t[0] + t[-1])))}
 
     def bounds(self, pipe):
         # the scale stays within 0.5..1.5 over the run
@@ -213,6 +294,13 @@ class ParameterError(CauseKind):
     target_key = "parameter"
     practical = 2e-4
     is_sensor = False
+    draw_sizes = {"realistic": (0.04, 0.10), "small": (0.015, 0.03)}
+
+    def draw_value(self, magnitude, sign):
+        return 1.0 + sign * magnitude
+
+    def true_model(self, model, target, value):
+        return {**model, target: model[target] * float(value)}
 
     def to_estimate(self, theta):
         return 1.0 + theta
@@ -242,6 +330,7 @@ class ForceNoise:
     name = "force_noise"
     unit = "N"
     method_rel = 0.05
+    draw_sizes = {"realistic": (10.0, 40.0), "small": (2.0, 5.0)}
 
     def __repr__(self) -> str:
         return self.name

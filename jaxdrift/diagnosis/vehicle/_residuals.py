@@ -240,6 +240,11 @@ class ResidualPipeline:
     def corrected_forces(self, corr: Corrections, smooth: bool = False) -> dict[str, np.ndarray]:
         """True-force estimate on the fine grid (:class:`Corrections`), the delay applied as a
         band-limited (FFT) shift."""
+        return corr.unmix(self._read_forces(corr, smooth))
+
+    def _read_forces(self, corr: Corrections, smooth: bool) -> dict[str, np.ndarray]:
+        """Each channel's own correction (:meth:`ForceCorrection.finish`), before any crosstalk is
+        undone."""
         out = {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
@@ -346,7 +351,7 @@ class ResidualPipeline:
         """
         coeffs, first = {}, {}
         # a scale changing over the run is not a constant factor on the coefficients
-        drifting = self.corrected_forces(corr, smooth) if any(c.drift != 0.0 for _, c in corr.items()) else {}
+        drifting = self._read_forces(corr, smooth) if any(c.drift != 0.0 for _, c in corr.items()) else {}
         for ch in FORCE_CHANNELS:
             c = corr[ch]
             if c.drift != 0.0:
@@ -366,7 +371,7 @@ class ResidualPipeline:
             C *= c.gain
             coeffs[ch] = C
             first[ch] = (f0 - c.offset) * c.gain
-        return coeffs, first
+        return corr.unmix(coeffs), corr.unmix(first)  # crosstalk: linear, so on the coefficients too
 
     def simulate(self, p: dict, forces: dict[str, np.ndarray] | None, *, linear_part_only=False,
                  forces_c: dict | None = None):
