@@ -161,8 +161,14 @@ def _screen(prob: _Problem, fit: Fit, chosen, active, Jc) -> list:
 def _refine(prob: _Problem, fit: Fit, chosen, scores, sig2_now: float, log=None) -> list:
     """Refine the best three screened candidates nonlinearly; rank them by the residual beyond the
     noise they are expected to carry (a heavier wheel or a softer damper passes less noise: that
-    must not count as a better explanation). Fits at the edge of the plausible range are left out."""
-    refined = []
+    must not count as a better explanation). Fits at the edge of the plausible range are left out.
+
+    The noise level of that penalty is an upper bound (``sig2_now``); the best candidate's own
+    residual variance is another, and the smaller one is used: a residual that still holds the
+    effect being looked for overstates the noise, and then a cause that shrinks the samples (a
+    scale) paid for noise the run does not have, and lost to two causes that do not (a share of
+    the other channel and a mass error standing in for a scale)."""
+    fits = []
     for gain_lin, c in scores[:3]:
         f_c = _gauss_newton(prob, chosen + [c], np.append(fit.theta, 0.0))
         if _at_bound(c, f_c.theta[-1], prob.pipe):
@@ -170,7 +176,10 @@ def _refine(prob: _Problem, fit: Fit, chosen, scores, sig2_now: float, log=None)
                 log.append(f"step {len(chosen) + 1}: {c.label} left out: its fit sits at the edge of "
                            f"its plausible range ({c.to_estimate(f_c.theta[-1]):.6g})")
             continue
-        refined.append((_systematic_rss(prob, fit, sig2_now) - _systematic_rss(prob, f_c, sig2_now), c, f_c))
+        fits.append((c, f_c))
+    if fits:
+        sig2_now = min(sig2_now, min(f_c.rss / max(len(f_c.r) - len(f_c.causes), 1) for _, f_c in fits))
+    refined = [(_systematic_rss(prob, fit, sig2_now) - _systematic_rss(prob, f_c, sig2_now), c, f_c) for c, f_c in fits]
     refined.sort(key=lambda s: -s[0])
     return refined
 
