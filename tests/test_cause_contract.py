@@ -6,7 +6,7 @@ holds the true size, it is confirmed, and the extended model carries its correct
 The registries (``jaxdrift.diagnosis.vehicle.cause_names``: the linear kinds, the nonlinear
 catalogue and tyre lift-off) decide which causes there are: a cause added to a registry without a
 case here fails ``test_every_registered_cause_has_a_case``.
-Each case runs a full diagnosis without the re-simulation (about a minute for all nine).
+Each case runs a full diagnosis without the re-simulation (about a minute for all ten).
 """
 
 from __future__ import annotations
@@ -26,6 +26,7 @@ CASES = {
     "force_scale": ({"cause": "force_scale", "channel": "f1", "value": 0.95}, "channel", 0.95),
     "force_delay": ({"cause": "force_delay", "channel": "f1", "value": 0.003}, "channel", 0.003),
     "force_gain_drift": ({"cause": "force_gain_drift", "channel": "f2", "value": 0.004}, "channel", 0.004),
+    "force_crosstalk": ({"cause": "force_crosstalk", "channel": "f2", "value": 0.03}, "channel", 0.03),
     "parameter_error": ({"cause": "parameter_error", "parameter": "k3", "value": 0.9}, "parameter", None),
     "damper_asymmetry": ({"cause": "damper_asymmetry", "parameter": "d4", "value": 1.5}, "parameter", 1.5),
     "progressive_spring": ({"cause": "progressive_spring", "parameter": "k4", "stiffening": 0.8}, "parameter", None),

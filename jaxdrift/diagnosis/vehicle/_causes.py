@@ -286,6 +286,32 @@ class ForceGainDrift(CauseKind):
 
 
 @final
+class ForceCrosstalk(CauseKind):
+    """A share of the other force channel read in this one (crosstalk between the channels of one
+    amplifier or transducer): ``read = true + share x other's true``, before the channel's own
+    gain and offset; theta = share."""
+
+    name = "force_crosstalk"
+    unit = "share"
+    practical = 2e-4
+    theta_range = (-0.2, 0.2)
+    forward_stage = 1
+    draw_sizes = {"realistic": (0.01, 0.05), "small": (0.003, 0.008)}
+    drawn_by_default = False  # its own study design (gen_vehicle.design_crosstalk)
+
+    def forward(self, measured, target, value, read):
+        other = FORCE_CHANNELS[1 - FORCE_CHANNELS.index(target)]
+        return {**measured, target: measured[target] + float(value) * read(target)[other]}
+
+    def adjust(self, c, theta):
+        return replace(c, leak=c.leak + theta)
+
+    def describe(self, target, estimate):
+        other = FORCE_CHANNELS[1 - FORCE_CHANNELS.index(target)]
+        return f"{estimate * 100:+.3g} % of {other} read in {target}"
+
+
+@final
 class ParameterError(CauseKind):
     """A model parameter off: ``true = ratio x model``; theta = ratio - 1."""
 
@@ -354,12 +380,13 @@ FORCE_OFFSET = ForceOffset()
 FORCE_SCALE = ForceScale()
 FORCE_DELAY = ForceDelay()
 FORCE_GAIN_DRIFT = ForceGainDrift()
+FORCE_CROSSTALK = ForceCrosstalk()
 PARAMETER_ERROR = ParameterError()
 FORCE_NOISE = ForceNoise()
 
 #: the candidate kinds, in the order their candidates are tried
 VEHICLE_CAUSES: tuple[CauseKind, ...] = (FORCE_OFFSET, FORCE_SCALE, FORCE_DELAY, FORCE_GAIN_DRIFT,
-                                         PARAMETER_ERROR)
+                                         FORCE_CROSSTALK, PARAMETER_ERROR)
 SENSOR_KINDS = tuple(k for k in VEHICLE_CAUSES if k.is_sensor)
 _BY_NAME = {k.name: k for k in (*VEHICLE_CAUSES, FORCE_NOISE)}
 
