@@ -323,7 +323,7 @@ def test_size_ranges():
     rng = np.random.default_rng(0)
     model = dict(gv.VEHICLES["van"], g=9.81)
     case = {"model": model, "effects": []}
-    for cause, tgt in gv.SINGLES:
+    for cause, tgt in gv.SINGLES + gv.CROSSTALK:
         u = [sw.size_u(gv.draw_effect(rng, cause, tgt, model), case) for _ in range(200)]
         assert -1e-9 <= min(u) and max(u) <= 1 + 1e-9 and max(u) - min(u) > 0.8, (cause, tgt)
     for cause in ga.SYSTEMATIC:

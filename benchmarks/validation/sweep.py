@@ -54,7 +54,8 @@ sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 #: axle is the effect's (front: k3/d3/f1, rear: k4/d4/f2)
 NONLINEAR = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
 FORM = ("model_form",) + NONLINEAR
-SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "force_gain_drift", "parameter_error") + FORM,
+SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "force_gain_drift", "force_crosstalk",
+                          "parameter_error") + FORM,
               "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")}
 NOISE = {"vehicle": ("force_noise",), "attitude": ("gyro_noise", "accel_noise")}
 #: sizing of the committed sweep (fits ~35 min of one core for 200 vehicle + 100 attitude runs)
@@ -67,7 +68,7 @@ SIZING = {"vehicle": {"durations": (10.0, 40.0), "rates": (200, 250, 300, 500, 6
 #: the generators' log-uniform size ranges of each systematic effect (``size_u`` maps an effect to
 #: its place in its range: 0 barely detectable ... 1 large; ``test_size_ranges`` keeps them in step)
 SIZE_RANGES = {"force_offset": (1e-3, 1e-1), "force_scale": (1e-3, 1e-1), "force_delay": (1e-4, 1e-2),
-               "force_gain_drift": (2e-3, 5e-2),
+               "force_gain_drift": (2e-3, 5e-2), "force_crosstalk": (2e-3, 5e-2),
                "parameter_error": (5e-3, 0.2), "gyro_bias": (3.0, 300.0), "gyro_scale": (1e-3, 5e-2),
                "gyro_bias_drift": (1e-5, 1e-3), "sensor_position": (0.005, 0.1), "nonrigid": (0.005, 0.3)}
 
