@@ -4,6 +4,11 @@
   ``C(2k, k)``, is the white-noise variance once the (smooth) motion no longer contributes; the order
   is raised until two consecutive orders agree. Its standard error follows from the MA(k)
   autocorrelation of differenced white noise (``sum rho^2 = C(4k,2k)/C(2k,k)^2``).
+- :func:`block_white_noise`: the same white level from the means of blocks of ``m`` samples of a
+  still span (``m`` times the Allan variance at ``m dt``, which is the per-sample variance for
+  white noise at every ``m``). A gyro whose samples are filtered or averaged inside the sensor (a
+  PX4 log's ``sensor_combined``) has less noise near the sampling rate than below its cutoff: the
+  differences see the former, the block means the latter, which is what an angle integrates.
 - :func:`allan`: overlapping Allan deviation (allantools) of an error series and a fit of N, B, K.
 """
 
@@ -13,7 +18,13 @@ import numpy as np
 
 from .._diffnoise import diff_variance, first_plateau
 
-__all__ = ["estimate_white_noise", "allan"]
+__all__ = ["estimate_white_noise", "allan", "block_white_noise"]
+
+#: block sizes need this many blocks for the level of their means
+BLOCK_MIN_BLOCKS = 128
+#: the longest block [s]: a gyro's own filter settles far sooner (its cutoff is tens of Hz), while
+#: longer blocks see the slow motion a "still" body still has
+BLOCK_MAX_S = 0.15
 
 
 def estimate_white_noise(x, dt, max_order: int = 8):
@@ -32,6 +43,52 @@ def estimate_white_noise(x, dt, max_order: int = 8):
     leak = np.abs(before[1] - chosen[1]) if plateau else np.zeros_like(chosen[1])
     k, v, se = chosen
     return {"sigma": np.sqrt(v), "var": v, "var_se": se, "var_method": leak, "order": k, "plateau": plateau, "dt": dt}
+
+
+def block_white_noise(x, dt, min_blocks: int = BLOCK_MIN_BLOCKS):
+    """White-noise level of each column of a still span ``x`` from block means.
+
+    For ``m = 1, 2, 4, ...`` (at least ``min_blocks`` blocks, at most :data:`BLOCK_MAX_S`): ``v_m = m / 2 *
+    s^2`` per column, ``s`` the robust (MAD) spread of ``b_{k+1} - b_k`` (``b``: the means of consecutive blocks of ``m`` samples), the per-sample
+    variance of white noise at every ``m``. Returns ``None`` when the span is too short, else a dict
+    with ``m`` (the block size of the plateau: the last of the first chain of sizes whose ``v_m``
+    and ``v_2m`` agree within two standard errors, averaged over the columns), ``var`` (per column, per-sample units), ``var_se`` and the
+    whole ``ladder`` [(m, mean v_m, se)]; ``plateau`` is False when ``v_m`` still changes at the
+    largest block size.
+    """
+    x = np.asarray(x, float)
+    n = x.shape[0]
+    ladder = []
+    m = 1
+    while n // m >= min_blocks and m * dt <= BLOCK_MAX_S:
+        nb = n // m
+        b = x[: nb * m].reshape(nb, m, -1).mean(axis=1)
+        d = np.diff(b, axis=0)
+        # robust (MAD) spread: a "still" span's edge may hold some of the motion around it
+        v = 0.5 * m * (1.4826 * np.median(np.abs(d - np.median(d, axis=0)), axis=0)) ** 2
+        # adjacent differences share a block (about 1.5 x the variance of nb - 1 independent ones),
+        # and the MAD's efficiency is 37 % of the variance's
+        se = v * np.sqrt(1.5 * 2.0 / (nb - 1) / 0.37)
+        ladder.append((m, v, se))
+        m *= 2
+    if len(ladder) < 2:
+        return None
+    def agree(a, b):
+        return abs(float(np.mean(b[1])) - float(np.mean(a[1]))) <= 2.0 * float(np.sqrt(np.mean(a[2]**2 + b[2]**2) / a[1].size))
+
+    for i in range(len(ladder) - 1):
+        if agree(ladder[i], ladder[i + 1]):
+            # a filter's level is approached from below: the last block size that still agrees
+            # with the one before (until slow motion lifts the level further)
+            j = i + 1
+            while j + 1 < len(ladder) and agree(ladder[j], ladder[j + 1]):
+                j += 1
+            m0, v0, s0 = ladder[j]
+            return {"m": m0, "var": v0, "var_se": s0, "plateau": True, "dt": dt,
+                    "ladder": [(mm, float(np.mean(vv)), float(np.mean(ss))) for mm, vv, ss in ladder]}
+    m0, v0, s0 = ladder[-1]
+    return {"m": m0, "var": v0, "var_se": s0, "plateau": False, "dt": dt,
+            "ladder": [(mm, float(np.mean(vv)), float(np.mean(ss))) for mm, vv, ss in ladder]}
 
 
 def allan(series, dt):

@@ -23,7 +23,7 @@ from ...io._timebase import longest_run
 from ...models._quaternion import quat_to_euler_np, rotation_matrix_np
 from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
-from ._noise import estimate_white_noise
+from ._noise import BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise
 
 __all__ = ["noise_kind_step", "degenerate", "gap_mask", "residual_noise_scale",
            "inconsistent_findings", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
@@ -48,7 +48,78 @@ def noise_kind_step(run, noise, still, vib):
     """Gyro noise from a span where the reference says the body does not move (rows ``still``),
     else an upper bound: the revised :class:`._records.GyroNoise`. Where the gyro vibrates
     (``vib``, :mod:`._vibration`) the noise was measured on its quiet spans and stays: a body held
-    still by the reference may still shake."""
+    still by the reference may still shake. Then :func:`_below_the_filter`."""
+    return _below_the_filter(run, _noise_kind(run, noise, still, vib), still, vib)
+
+
+#: the block means' level replaces the differences' where it is this many times higher (in std)
+FILTERED_RATIO = 1.5
+
+
+def _below_the_filter(run, noise, still, vib):
+    """A gyro whose samples are filtered or averaged inside the sensor (PX4's ``sensor_combined``
+    averages a faster gyro over each interval, after a low-pass) has less noise near the sampling
+    rate than below its cutoff: high-order differences then see only what the filter lets
+    through, and an angle integrates the noise below it. On the longest still span free of
+    vibration, whose spectrum does not rise (:func:`_rises`), the block means' level (:func:`._noise.block_white_noise`)
+    replaces the estimate where it is more than :data:`FILTERED_RATIO` times higher, beyond two
+    standard errors."""
+    f = noise.finding
+    if still is None:
+        return noise
+    dt, t = run["dt"], run["t"]
+    calm = np.asarray(still, bool).copy()
+    for a, b in (vib.spans if vib is not None else []):
+        calm &= ~((t >= a) & (t <= b))
+    i0, i1 = _longest(calm)
+    bw = block_white_noise(run["w"][i0:i1], dt) if i1 - i0 >= 4 * BLOCK_MIN_BLOCKS else None
+    if bw is None or not bw["plateau"] or bw["m"] == 1 or _rises(run["w"][i0:i1], dt):
+        return noise
+    v_blk = float(np.mean(bw["var"]))
+    se = float(np.sqrt(np.sum(np.square(bw["var_se"]))) / 3.0)
+    # none from the differences: never white there (the filter leaves them coloured to the last order)
+    v_now = float(f["estimate"]) ** 2 / dt if f is not None and f.get("estimate") else 0.0
+    if v_blk < FILTERED_RATIO**2 * v_now or v_blk - 2.0 * se <= v_now or math.sqrt(v_blk) <= 3.0 * noise.floor:
+        return noise
+    seen = (f"{fmt(N_ := math.sqrt(v_blk * dt))} rad/sqrt(s), {fmt(N_ / float(f['estimate']))} times the "
+            f"{fmt(float(f['estimate']))} that the differences see near the sampling rate" if v_now > 0 else
+            f"{fmt(math.sqrt(v_blk * dt))} rad/sqrt(s), where the differences never turn white")
+    N = math.sqrt(v_blk * dt)
+    half = stats.norm.ppf(0.975) * se
+    ladder = ", ".join(f"{m}: {fmt(math.sqrt(v * dt))}" for m, v, _ in bw["ladder"])
+    return replace(noise, sigma_axis=np.sqrt(bw["var"]), found=True, var_rate=max(v_blk * dt, noise.var_rate),
+                   finding={
+        "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
+        "interval": [math.sqrt(max(v_blk - half, 0.0) * dt), math.sqrt((v_blk + half) * dt)],
+        "evidence": (
+            f"the gyro's samples are filtered: while the body does not move (t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s), "
+            f"the means of blocks of {bw['m']} samples ({fmt(bw['m'] * dt)} s) give N = {seen} "
+            f"({fmt(np.degrees(N) * 60)} deg/sqrt(h); N by block size, samples: {ladder}); an angle "
+            f"integrates the noise below the filter's cutoff"),
+    })
+
+
+#: a still span's spectrum (smoothed over 9 bins, above 2 Hz) that rises to this many times its
+#: level at 2 Hz holds a disturbance (a phone's vibration motor, an idling rotor), not a filter's
+#: shape: filtered white noise is flat below the cutoff and falls above it
+RISE_RATIO = 2.5
+
+
+def _rises(x, dt) -> bool:
+    """Whether a still span's spectrum rises above its low end: then the block means' climb is
+    that disturbance, not white noise below a filter (a narrow line, smoothed away, does not count)."""
+    from scipy import signal
+    from scipy.ndimage import median_filter
+
+    f, p = signal.welch(x - x.mean(axis=0), fs=1.0 / dt, nperseg=min(256, max(len(x) // 4, 16)), axis=0)
+    p = p.mean(axis=1)[f >= 2.0]
+    if p.size <= 8:
+        return True  # too short a span to tell: keep the differences' level
+    sm = median_filter(p, size=9, mode="nearest")
+    return bool(sm.max() > RISE_RATIO * sm[0])
+
+
+def _noise_kind(run, noise, still, vib):
     if vib is not None:
         return noise
     dt, t = run["dt"], run["t"]
