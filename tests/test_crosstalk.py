@@ -5,6 +5,7 @@ independent solve, and the diagnosis finding it alone and beside another sensor 
 
 import numpy as np
 import pytest
+from _sensor_runs import diagnosed_with_effects
 
 from jaxdrift.diagnosis.vehicle import VEHICLE_CAUSES, apply_causes, kind_named
 from jaxdrift.diagnosis.vehicle._causes import Cause
@@ -90,19 +91,6 @@ def test_the_diagnosis_finds_the_crosstalk(tmp_path, effects, seed):
     """20 s at 500 Hz, pitch and heave measured, 3 N of force noise (fixed seeds): the crosstalk is
     a confirmed finding on its channel whose 95 % interval holds the true share, beside the offset,
     and the extended model's correction carries it as ``leak``."""
-    from jaxdrift.diagnosis.vehicle import diagnose_vehicle_run
-    from jaxdrift.io._csvio import read_vehicle_run, write_vehicle_run
-    from jaxdrift.studies._rungen import make_run
-
-    cols, _ = make_run(effects + [{"cause": "force_noise", "value": 3.0}], duration=20.0, fs=500.0,
-                       seed=seed, channels=("beta", "z3"))
-    path = tmp_path / "run.csv"
-    write_vehicle_run(path, cols["t"], {k: v for k, v in cols.items() if k != "t"})
-    rep = diagnose_vehicle_run(read_vehicle_run(path), None)
-    systematic = [f for f in rep["findings"] if f["cause"] != "force_noise"]
-    assert {(f["cause"], f["channel"]) for f in systematic} == {(e["cause"], e["channel"]) for e in effects}
-    for e in effects:
-        f = next(f for f in systematic if f["cause"] == e["cause"])
-        assert f["confirmed"] and f["interval"][0] <= e["value"] <= f["interval"][1], f
+    rep = diagnosed_with_effects(tmp_path, effects, seed)
     xt = next(e for e in effects if e["cause"] == "force_crosstalk")
     assert rep["extended_model"]["corrections"][xt["channel"]]["leak"] == pytest.approx(xt["value"], rel=0.05)
