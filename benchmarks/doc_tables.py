@@ -398,13 +398,14 @@ def diagnose_timing(root: Path) -> str:
 def _corpus_table(r) -> str:
     g = _g
     rows = ["| recording | device | format | length [s] | independent bias x, y, z [mrad/s] (SE) | clear | named "
-            "| jaxdrift's gyro noise [rad/sqrt(s)] | other findings | exit |", "|---|---|---|---|---|---|---|---|---|---|"]
-    named = clear = 0
+            "| jaxdrift's gyro noise [rad/sqrt(s)] | still-span noise [rad/sqrt(s)] (ratio) | other findings | exit |",
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
+    named = clear = n_ok = n_checked = 0
     for L in r["logs"]:
         ind, j = L.get("independent") or {}, L.get("jaxdrift") or {}
         ch = j.get("checks") or {}
         if not ind or not ch.get("ran"):
-            rows.append(f"| {Path(L['file']).name} | {L['device']} | {L['format']} | | missing | | | | | |")
+            rows.append(f"| {Path(L['file']).name} | {L['device']} | {L['format']} | | missing | | | | | | |")
             continue
         b = ", ".join(f"{1e3 * x:+.2f} ({1e3 * s:.2f})" for x, s in zip(ind["bias"], ind["se"]))
         cl = " ".join(a for a, c in zip("xyz", ind["clear"]) if c) or "none"
@@ -412,11 +413,19 @@ def _corpus_table(r) -> str:
         clear += ch["clear"]
         gn = ch.get("gyro_noise") or {}
         noise = f"{g(gn['estimate'])} ({gn['kind'].replace('_', ' ')})" if gn else "none"
+        nc = ch.get("noise_check")
+        still = "-"
+        if nc:
+            n_checked += 1
+            n_ok += bool(nc["ok"])
+            still = f"{g(nc['still'])} ({nc['ratio']:.2g}{'' if nc['ok'] else ', outside 3x'})"
+        elif L.get("still_noise"):
+            still = g(sum(L["still_noise"]["density"]) / 3)
         others = sorted({c for c in ch.get("causes", []) if c not in ("gyro_noise", "gyro_bias")})
         dur = L.get("gyro", {}).get("duration_s") if isinstance(L.get("gyro"), dict) else None
         rows.append(f"| {Path(L['file']).name} | {L['device']} | {L['format']} | {g(dur) if dur else ''} | {b} | {cl} "
-                    f"| {ch['clear_named']}/{ch['clear']} | {noise} | {', '.join(others) or '-'} | {j.get('exit')} |")
-    rows.append(f"| **all** | | | | | | **{named}/{clear}** | | | |")
+                    f"| {ch['clear_named']}/{ch['clear']} | {noise} | {still} | {', '.join(others) or '-'} | {j.get('exit')} |")
+    rows.append(f"| **all** | | | | | | **{named}/{clear}** | | **{n_ok}/{n_checked}** | | |")
     return "\n".join(rows)
 
 
