@@ -48,13 +48,14 @@ def estimate_white_noise(x, dt, max_order: int = 8):
 def block_white_noise(x, dt, min_blocks: int = BLOCK_MIN_BLOCKS):
     """White-noise level of each column of a still span ``x`` from block means.
 
-    For ``m = 1, 2, 4, ...`` (at least ``min_blocks`` blocks, at most :data:`BLOCK_MAX_S`): ``v_m = m / 2 *
-    s^2`` per column, ``s`` the robust (MAD) spread of ``b_{k+1} - b_k`` (``b``: the means of consecutive blocks of ``m`` samples), the per-sample
-    variance of white noise at every ``m``. Returns ``None`` when the span is too short, else a dict
-    with ``m`` (the block size of the plateau: the last of the first chain of sizes whose ``v_m``
-    and ``v_2m`` agree within two standard errors, averaged over the columns), ``var`` (per column, per-sample units), ``var_se`` and the
-    whole ``ladder`` [(m, mean v_m, se)]; ``plateau`` is False when ``v_m`` still changes at the
-    largest block size.
+    For ``m = 1, 2, 4, ...`` (at least ``min_blocks`` blocks, at most :data:`BLOCK_MAX_S`):
+    ``v_m = m / 2 * s^2`` per column, ``s`` the robust (MAD) spread of ``b_{k+1} - b_k`` (``b``:
+    the means of consecutive blocks of ``m`` samples), the per-sample variance of white noise at
+    every ``m``. Returns ``None`` when the span is too short, else a dict with ``m`` (the block
+    size of the plateau: the last of the first chain of sizes whose ``v_m`` and ``v_2m`` agree
+    within two standard errors, averaged over the columns), ``var`` (per column, per-sample
+    units), ``var_se`` and the whole ``ladder`` [(m, mean v_m, se)]; ``plateau`` is False when
+    ``v_m`` still changes at the largest block size.
     """
     x = np.asarray(x, float)
     n = x.shape[0]
@@ -73,8 +74,10 @@ def block_white_noise(x, dt, min_blocks: int = BLOCK_MIN_BLOCKS):
         m *= 2
     if len(ladder) < 2:
         return None
+
     def agree(a, b):
-        return abs(float(np.mean(b[1])) - float(np.mean(a[1]))) <= 2.0 * float(np.sqrt(np.mean(a[2]**2 + b[2]**2) / a[1].size))
+        se = float(np.sqrt(np.mean(a[2] ** 2 + b[2] ** 2) / a[1].size))
+        return abs(float(np.mean(b[1])) - float(np.mean(a[1]))) <= 2.0 * se
 
     for i in range(len(ladder) - 1):
         if agree(ladder[i], ladder[i + 1]):

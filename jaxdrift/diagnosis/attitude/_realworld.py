@@ -61,9 +61,9 @@ def _below_the_filter(run, noise, still, vib):
     averages a faster gyro over each interval, after a low-pass) has less noise near the sampling
     rate than below its cutoff: high-order differences then see only what the filter lets
     through, and an angle integrates the noise below it. On the longest still span free of
-    vibration, whose spectrum does not rise (:func:`_rises`), the block means' level (:func:`._noise.block_white_noise`)
-    replaces the estimate where it is more than :data:`FILTERED_RATIO` times higher, beyond two
-    standard errors."""
+    vibration, whose spectrum does not rise (:func:`_rises`), the block means' level
+    (:func:`._noise.block_white_noise`) replaces the estimate where it is more than
+    :data:`FILTERED_RATIO` times higher, beyond two standard errors."""
     f = noise.finding
     if still is None:
         return noise
@@ -81,10 +81,10 @@ def _below_the_filter(run, noise, still, vib):
     v_now = float(f["estimate"]) ** 2 / dt if f is not None and f.get("estimate") else 0.0
     if v_blk < FILTERED_RATIO**2 * v_now or v_blk - 2.0 * se <= v_now or math.sqrt(v_blk) <= 3.0 * noise.floor:
         return noise
-    seen = (f"{fmt(N_ := math.sqrt(v_blk * dt))} rad/sqrt(s), {fmt(N_ / float(f['estimate']))} times the "
-            f"{fmt(float(f['estimate']))} that the differences see near the sampling rate" if v_now > 0 else
-            f"{fmt(math.sqrt(v_blk * dt))} rad/sqrt(s), where the differences never turn white")
     N = math.sqrt(v_blk * dt)
+    seen = (f"{fmt(N)} rad/sqrt(s), {fmt(N / float(f['estimate']))} times the {fmt(float(f['estimate']))} "
+            f"that the differences see near the sampling rate" if v_now > 0 else
+            f"{fmt(N)} rad/sqrt(s), where the differences never turn white")
     half = stats.norm.ppf(0.975) * se
     ladder = ", ".join(f"{m}: {fmt(math.sqrt(v * dt))}" for m, v, _ in bw["ladder"])
     return replace(noise, sigma_axis=np.sqrt(bw["var"]), found=True, var_rate=max(v_blk * dt, noise.var_rate),
