@@ -527,16 +527,16 @@ def generate(case: dict) -> tuple[dict, dict]:
         if e["cause"] == "tyre_lift_off":  # the share of samples the tyre actually spends in the air
             e["value"] = float(np.mean(true[e["channel"]] <= 0.0))
     meas = {"f1": true["f1"].copy(), "f2": true["f2"].copy()}
-    for e in case["effects"]:
-        if e["cause"] == "force_delay":
-            meas[e["channel"]] = signals(p, road, v, x0, sol, tau - e["value"], scale, lift)[e["channel"]]
+    # a delayed channel reads every true signal late: its own force and the other's (crosstalk)
+    late = {e["channel"]: signals(p, road, v, x0, sol, tau - e["value"], scale, lift)
+            for e in case["effects"] if e["cause"] == "force_delay"}
+    for ch, sig in late.items():
+        meas[ch] = sig[ch]
     for e in case["effects"]:  # crosstalk: the other channel's true force, at this channel's time
         if e["cause"] == "force_crosstalk":
             ch = e["channel"]
             other = "f2" if ch == "f1" else "f1"
-            lag = next((d["value"] for d in case["effects"] if d["cause"] == "force_delay" and d["channel"] == ch), None)
-            src = true[other] if lag is None else signals(p, road, v, x0, sol, tau - lag, scale, lift)[other]
-            meas[ch] = meas[ch] + e["value"] * src
+            meas[ch] = meas[ch] + e["value"] * late.get(ch, true)[other]
     for e in case["effects"]:
         if e["cause"] == "force_scale":
             meas[e["channel"]] = meas[e["channel"]] * e["value"]

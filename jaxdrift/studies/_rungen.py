@@ -181,11 +181,9 @@ def apply_sensor_effects(true: dict, effects, seed: int, delayed: dict | None = 
     meas = {ch: np.array(true[ch], dtype=float) for ch in ("f1", "f2")}
     read = _Reader(true, delayed)
     sensor = [(kind_named(e["cause"]), e) for e in effects if e["cause"] != FORCE_NOISE.name]
-    sensor = [(k, e) for k, e in sensor if k.is_sensor]
-    for stage in sorted({k.forward_stage for k, _ in sensor}):
-        for k, e in sensor:
-            if k.forward_stage == stage:
-                meas = k.forward(meas, e["channel"], float(e["value"]), read)
+    # in the chain's order; a stable sort keeps the effects' own order within a stage
+    for k, e in sorted(((k, e) for k, e in sensor if k.is_sensor), key=lambda ke: ke[0].forward_stage):
+        meas = k.forward(meas, e["channel"], float(e["value"]), read)
     rng = np.random.default_rng(seed)
     for e in effects:
         if e["cause"] == FORCE_NOISE.name:

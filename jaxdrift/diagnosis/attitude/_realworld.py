@@ -64,9 +64,9 @@ def _below_the_filter(run, noise, still, vib):
     vibration, whose spectrum does not rise (:func:`_rises`), the block means' level
     (:func:`._noise.block_white_noise`) replaces the estimate where it is more than
     :data:`FILTERED_RATIO` times higher, beyond two standard errors."""
-    f = noise.finding
     if still is None:
         return noise
+    f = noise.finding
     dt, t = run["dt"], run["t"]
     calm = np.asarray(still, bool).copy()
     for a, b in (vib.spans if vib is not None else []):
@@ -81,16 +81,15 @@ def _below_the_filter(run, noise, still, vib):
     v_now = float(f["estimate"]) ** 2 / dt if f is not None and f.get("estimate") else 0.0
     if v_blk < FILTERED_RATIO**2 * v_now or v_blk - 2.0 * se <= v_now or math.sqrt(v_blk) <= 3.0 * noise.floor:
         return noise
-    N = math.sqrt(v_blk * dt)
+    N, lo, hi = _noise_interval({"var": bw["var"], "var_se": bw["var_se"], "var_method": 0.0}, dt)
     seen = (f"{fmt(N)} rad/sqrt(s), {fmt(N / float(f['estimate']))} times the {fmt(float(f['estimate']))} "
             f"that the differences see near the sampling rate" if v_now > 0 else
             f"{fmt(N)} rad/sqrt(s), where the differences never turn white")
-    half = stats.norm.ppf(0.975) * se
     ladder = ", ".join(f"{m}: {fmt(math.sqrt(v * dt))}" for m, v, _ in bw["ladder"])
     return replace(noise, sigma_axis=np.sqrt(bw["var"]), found=True, var_rate=max(v_blk * dt, noise.var_rate),
                    finding={
         "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
-        "interval": [math.sqrt(max(v_blk - half, 0.0) * dt), math.sqrt((v_blk + half) * dt)],
+        "interval": [lo, hi],
         "evidence": (
             f"the gyro's samples are filtered: while the body does not move (t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s), "
             f"the means of blocks of {bw['m']} samples ({fmt(bw['m'] * dt)} s) give N = {seen} "

@@ -177,9 +177,11 @@ def _refine(prob: _Problem, fit: Fit, chosen, scores, sig2_now: float, log=None)
                            f"its plausible range ({c.to_estimate(f_c.theta[-1]):.6g})")
             continue
         fits.append((c, f_c))
-    if fits:
-        sig2_now = min(sig2_now, min(f_c.rss / max(len(f_c.r) - len(f_c.causes), 1) for _, f_c in fits))
-    refined = [(_systematic_rss(prob, fit, sig2_now) - _systematic_rss(prob, f_c, sig2_now), c, f_c) for c, f_c in fits]
+    if not fits:
+        return []
+    sig2_now = min(sig2_now, min(f_c.rss / max(len(f_c.r) - len(f_c.causes), 1) for _, f_c in fits))
+    base = _systematic_rss(prob, fit, sig2_now)
+    refined = [(base - _systematic_rss(prob, f_c, sig2_now), c, f_c) for c, f_c in fits]
     refined.sort(key=lambda s: -s[0])
     return refined
 
