@@ -322,7 +322,7 @@ def still_noise(tg, w, tq, q, armed=None):
     if len(tg) < 2 * n:
         return None
     refmax = np.interp(tg, tr, np.linalg.norm(wr, axis=1))
-    sel = []
+    sel, spans = [], []
     for s in range(0, len(tg) - n, n):
         sl = slice(s, s + n)
         st = np.diff(tg[sl])
@@ -332,12 +332,14 @@ def still_noise(tg, w, tq, q, armed=None):
             continue
         if refmax[sl].max() < 0.02 and w[sl].std(0).max() < 0.02:
             sel.append(np.diff(w[sl], axis=0))
+            spans.append([float(tg[s]), float(tg[s + n - 1])])
     if len(sel) < 1:
         return None
     d = np.concatenate(sel)
     sig = d.std(0) / np.sqrt(2)
     return {"windows": len(sel), "seconds": len(sel) * n * dtg, "sigma_per_sample": sig.tolist(),
-            "density": (sig * np.sqrt(dtg)).tolist(), "motors_off": armed is not None}
+            "density": (sig * np.sqrt(dtg)).tolist(), "motors_off": armed is not None,
+            "windows_s": spans}
 
 
 def independent(entry):
@@ -445,6 +447,12 @@ def run_jaxdrift(entry, res, tmp):
     # (not below the still level / 3) with the vibration named
     still = res.get("still_noise")
     noise_check = None
+    if still and noise and len(noise) > 1 and still.get("windows_s"):
+        # a log diagnosed in parts (one per gyro): the part that holds most of the still windows
+        def held(f):
+            a, b = (f.get("part") or {}).get("span_s", [-np.inf, np.inf])
+            return sum(a <= 0.5 * (u + v) <= b for u, v in still["windows_s"])
+        noise = sorted(noise, key=held, reverse=True)
     if still and noise and noise[0].get("estimate"):
         lvl = float(np.mean(still["density"]))
         est, kind = float(noise[0]["estimate"]), noise[0].get("estimate_kind")

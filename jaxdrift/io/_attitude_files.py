@@ -58,7 +58,8 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
       its quaternion is a rotation about the vertical; the diagnosis compares it about that axis only);
     - ``onboard_bias`` and ``events``: what a PX4 log says besides (:func:`jaxdrift.io._logs.ulog_context`:
       the flight controller's own gyro-bias estimate, gyro and estimator switches, attitude
-      resets); None and [] for other formats.
+      resets); None and [] for other formats;
+    - ``armed``: when the motors may run (``{"t", "armed"}``, from the same context), or None.
     """
     try:
         run = load_run(path, "attitude", map=map, units=units, fs=fs, force=force, checks=checks,
@@ -109,6 +110,7 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
         context = ulog_context(path, run.info["columns"].get("wx"))
     return {"path": path, "t": run.t, "dt": run.dt, "w": w, "q_ref": q_ref, "acc": acc, "extra_columns": extra,
             "onboard_bias": context.get("onboard_bias"), "events": context.get("events", []),
+            "armed": context.get("armed"),
             "quantisation": _text_rounding(path, run.info, list(CHANNELS)),
             "acc_quantisation": _text_rounding(path, run.info, acc_cols),
             "warnings": run.warnings, "info": run.info, "time_base": run.time_base,

@@ -439,7 +439,8 @@ def log_info(path) -> dict:
 # ------------------------------------------------------------------ what a PX4 log says besides
 
 #: the topics :func:`ulog_context` reads (each optional)
-_CONTEXT_TOPICS = ["estimator_sensor_bias", "sensor_selection", "estimator_selector_status", "vehicle_attitude"]
+_CONTEXT_TOPICS = ["estimator_sensor_bias", "sensor_selection", "estimator_selector_status", "vehicle_attitude",
+                   "actuator_armed", "vehicle_status"]
 
 
 def _step_value(t_ev, v_ev, t):
@@ -465,7 +466,10 @@ def ulog_context(path, gyro_map: str | None = None) -> dict:
       ``sensor_combined`` follows); None where the log has none;
     - ``events``: ``[{"t", "kind", "detail"}]`` with ``gyro_switch`` (the primary gyro's device id
       changes), ``estimator_switch`` (the primary estimator instance changes) and
-      ``attitude_reset`` (``vehicle_attitude.quat_reset_counter`` steps: a heading or state reset).
+      ``attitude_reset`` (``vehicle_attitude.quat_reset_counter`` steps: a heading or state reset);
+    - ``armed``: ``{"t", "armed"}``, whether the motors may run (``actuator_armed.armed``, else
+      ``vehicle_status.arming_state`` = 2 in older logs; a step signal from each time on), or
+      None: a disarmed vehicle does not shake its gyro.
 
     ``gyro_map``: the ``wx`` channel read (``TOPIC:INSTANCE.FIELD``): the context applies to
     ``sensor_combined`` only (a mapped ``sensor_gyro`` instance is one sensor: no switch, and the
@@ -538,5 +542,19 @@ def ulog_context(path, gyro_map: str | None = None) -> dict:
             order = np.argsort(t, kind="stable")
             onboard = {"t": t[order], "b": np.concatenate(bs)[order], "topic": "estimator_sensor_bias",
                        "device_ids": sorted(ids)}
+    armed = None
+    arm = sets.get("actuator_armed", {}).get(0)
+    status = sets.get("vehicle_status", {}).get(0)
+    if arm is not None and "armed" in arm.data:
+        ta, a = tv(arm, "armed")
+        a = a.astype(bool)
+    elif status is not None and "arming_state" in status.data:  # older logs: 2 is ARMING_STATE_ARMED
+        ta, a = tv(status, "arming_state")
+        a = a == 2
+    else:
+        ta = np.zeros(0)
+    if len(ta):
+        order = np.argsort(ta, kind="stable")
+        armed = {"t": ta[order], "armed": np.asarray(a)[order]}
     events.sort(key=lambda e: e["t"])
-    return {"onboard_bias": onboard, "events": events}
+    return {"onboard_bias": onboard, "events": events, "armed": armed}

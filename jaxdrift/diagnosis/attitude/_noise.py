@@ -10,6 +10,8 @@
   PX4 log's ``sensor_combined``) has less noise near the sampling rate than below its cutoff: the
   differences see the former, the block means the latter, which is what an angle integrates.
 - :func:`allan`: overlapping Allan deviation (allantools) of an error series and a fit of N, B, K.
+- :func:`recorded_rates`: the rates as the logger recorded them over a span of the grid: every
+  level above is measured on them, not on the grid, where the run was resampled.
 """
 
 from __future__ import annotations
@@ -18,13 +20,57 @@ import numpy as np
 
 from .._diffnoise import diff_variance, first_plateau
 
-__all__ = ["estimate_white_noise", "allan", "block_white_noise"]
+__all__ = ["estimate_white_noise", "allan", "block_white_noise", "recorded_rates", "white_noise_recorded", "to_grid"]
 
 #: block sizes need this many blocks for the level of their means
 BLOCK_MIN_BLOCKS = 128
 #: the longest block [s]: a gyro's own filter settles far sooner (its cutoff is tens of Hz), while
 #: longer blocks see the slow motion a "still" body still has
 BLOCK_MAX_S = 0.15
+
+
+def recorded_rates(run, i0: int, i1: int):
+    """``(rates, step)``: the gyro's samples as recorded between grid rows ``i0`` and ``i1 - 1``
+    and their median step, where the run was resampled onto its grid (a log's own times jitter, or
+    its streams are merged); else the grid's rows and ``dt``. A linear interpolation between two
+    samples averages them: at half a step it keeps half of white noise's variance and, of its k-th
+    differences, less the higher k (on a ROS bag's 82 Hz IMU, 2.3 times less in std at order 4),
+    so a level read on the grid is below the sensor's."""
+    tr, wr = run.get("w_recorded_t"), run.get("w_recorded")
+    tb = run.get("time_base") or {}
+    if tr is None or wr is None or not tb.get("resampled") or i1 - i0 < 2:
+        return run["w"][i0:i1], run["dt"]
+    t = run["t"]
+    tol = 1e-6 * run["dt"]
+    a = int(np.searchsorted(tr, t[i0] - tol, side="left"))
+    b = int(np.searchsorted(tr, t[i1 - 1] + tol, side="right"))
+    x = np.asarray(wr[a:b], float)
+    if b - a < max(2, (i1 - i0) // 2) or not np.all(np.isfinite(x)):
+        return run["w"][i0:i1], run["dt"]
+    return x, float(np.median(np.diff(tr[a:b])))
+
+
+def white_noise_recorded(run, i0: int, i1: int, max_order: int = 8):
+    """:func:`estimate_white_noise` on the rates as recorded over grid rows ``[i0, i1)``
+    (:func:`recorded_rates`), its variances in per-grid-sample units (times the recorded step over
+    ``dt``), so that ``var * dt`` is the density's square either way."""
+    x, dtr = recorded_rates(run, i0, i1)
+    wn = estimate_white_noise(x, dtr, max_order)
+    return to_grid(wn, dtr, run["dt"])
+
+
+def to_grid(wn, dtr, dt):
+    """A level dict measured at step ``dtr`` in per-sample units of step ``dt``."""
+    r = dtr / dt
+    if r == 1.0:
+        return wn
+    out = dict(wn, dt=dt)
+    for key in ("var", "var_se", "var_method"):
+        if key in wn:
+            out[key] = np.asarray(wn[key]) * r
+    if "sigma" in wn:
+        out["sigma"] = np.asarray(wn["sigma"]) * np.sqrt(r)
+    return out
 
 
 def estimate_white_noise(x, dt, max_order: int = 8):

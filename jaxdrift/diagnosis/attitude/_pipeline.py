@@ -68,7 +68,7 @@ from ._common import (
 )
 from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reml_drift, rw_cov,
                     static_segment)
-from ._noise import allan, estimate_white_noise
+from ._noise import allan, estimate_white_noise, white_noise_recorded
 from ._alignment import alignment_step
 from ._vibration import vibration_step
 from ._records import Comparison, Diagnosis, GyroModel, GyroNoise, Said, Vibration
@@ -122,8 +122,12 @@ def diagnose_records(run, positions=None) -> Diagnosis:
         run, alignment, said = al.run, al.alignment, said + al.said
         comp, noise = reference_step(run, n_ref, noise, vib)
     else:
-        noise = noise_kind_step(run, noise, None, vib)
         comp = static_segment_step(run, n_ref, noise)
+        still = None
+        if comp.still_rows is not None:  # the gyro says the body does not move there
+            still = np.zeros(len(run["t"]), bool)
+            still[comp.still_rows[0] : comp.still_rows[1]] = True
+        noise = noise_kind_step(run, noise, still, vib, by="the gyro (the static segment)")
     said = said + comp.said
     if positions is not None:
         comp = array_step(run, positions, noise, comp)
@@ -145,7 +149,11 @@ def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
     dt, w = run["dt"], run["w"]
     segments = tuple(finite_segments(run))
     i0, i1 = max(segments, key=lambda r: r[1] - r[0])
-    wn = estimate_white_noise(w[i0:i1], dt)  # on the longest segment: differences never span a gap
+    # on the longest segment (differences never span a gap), the rates as recorded for the level
+    # (:func:`._noise.recorded_rates`); the per-sample spread of the grid's rates, which the fits
+    # regress on, from the grid
+    wn = white_noise_recorded(run, i0, i1)
+    wn_grid = estimate_white_noise(w[i0:i1], dt) if run.get("w_recorded") is not None else wn
     var_pooled = float(np.mean(wn["var"]))
     var_se = float(np.sqrt(np.sum(np.square(wn["var_se"]))) / 3.0)
     # below this a "noise" is rounding or numerical differentiation, not a gyro: three times the
@@ -153,14 +161,15 @@ def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
     # are near 2e-5 rad/s per sample, far above)
     floor = max(3.0 * run["quantisation"], 1e-6 * float(np.sqrt(np.nanmean(w**2))), 1e-15)
     noise_found = wn["plateau"] and math.sqrt(var_pooled) > floor
-    sigma_axis = wn["sigma"] if noise_found else np.zeros(3)
+    grid_found = wn_grid["plateau"] and math.sqrt(float(np.mean(wn_grid["var"]))) > floor
+    sigma_axis = wn_grid["sigma"] if noise_found and grid_found else np.zeros(3)
     N_hat = math.sqrt(var_pooled * dt) if noise_found else 0.0
     var_rate = max(var_pooled * dt, (floor**2) * dt, 1e-24)  # N^2 for weights
     notes = ()
     if noise_found:
         z95 = stats.norm.ppf(0.975)
         # the statistical half-width and the motion's possible share at the chosen order
-        # (:func:`estimate_white_noise`'s ``var_method``, pooled like the variances) in quadrature
+        # (:func:`._noise.estimate_white_noise`'s ``var_method``, pooled like the variances) in quadrature
         half = math.hypot(z95 * var_se, float(np.mean(wn["var_method"])))
         lo = math.sqrt(max(var_pooled - half, 0.0) * dt)
         hi = math.sqrt((var_pooled + half) * dt)
@@ -168,7 +177,7 @@ def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
             "cause": GYRO_NOISE.name, "estimate": N_hat, "unit": GYRO_NOISE.unit, "interval": [lo, hi],
             "evidence": (
                 f"order-{wn['order']} differences of the rates are white with per-sample std "
-                f"{', '.join(fmt(v) for v in sigma_axis)} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
+                f"{', '.join(fmt(v) for v in wn['sigma'])} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
                 f"N = sigma sqrt(dt) = {fmt(N_hat)} rad/sqrt(s) = {fmt(np.degrees(N_hat) * 60)} deg/sqrt(h)"
             ),
         }
@@ -176,7 +185,7 @@ def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
         finding = None
         notes = ("no white gyro noise above the rounding of the file"
                  if wn["plateau"] else "rate differences never became white: noise not separable from the motion",)
-    return GyroNoise(segments, wn, floor, bool(noise_found), sigma_axis, var_rate, finding), Said(notes=notes)
+    return GyroNoise(segments, wn_grid, floor, bool(noise_found), sigma_axis, var_rate, finding), Said(notes=notes)
 
 
 # --------------------------------------------------------------------------- reference attitude
@@ -608,7 +617,7 @@ def static_segment_step(run, n_ref, noise: GyroNoise) -> Comparison:
         findings=tuple(findings), sim_err={"static_rate": {"rms": rms, "unit": "rad/s"}},
         gain={"metric": "static_mean_rate_rms", "before": rms, "after": 0.0, "unit": "rad/s"},
         allan_series=st["data"], allan_label="rates in the static segment",
-        said=Said(notes=notes, observed=observed, not_observed=not_observed))
+        said=Said(notes=notes, observed=observed, not_observed=not_observed), still_rows=(int(i0), int(i1)))
 
 
 # --------------------------------------------------------------------------- Allan

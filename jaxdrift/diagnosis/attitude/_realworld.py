@@ -5,7 +5,10 @@ run cannot determine, gaps, and the findings of an inconsistent reference.
   body does not move (the longest still span of :mod:`._consistency`, at least
   :data:`STILL_MIN_S`); anywhere else the high-order differences may hold true motion (a flying
   vehicle's vibration is broadband up to the sampling rate) and the level is reported as an
-  *upper bound* (``"estimate_kind": "upper_bound"``, interval ``[0, bound]``).
+  *upper bound* (``"estimate_kind": "upper_bound"``, interval ``[0, bound]``). Where the log says
+  when the motors are off (a PX4 log's ``actuator_armed``), those rows give the estimate
+  (:func:`_motors_off`). Every level is read on the rates as recorded
+  (:func:`._noise.recorded_rates`).
 - :func:`degenerate`: the parameters of the reference fit that its information matrix does not
   determine (a null direction): reported as not determined, never as a finding with a standard
   error of 0 and an infinite z.
@@ -23,13 +26,18 @@ from ...io._timebase import longest_run
 from ...models._quaternion import quat_to_euler_np, rotation_matrix_np
 from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
-from ._noise import BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise
+from .._diffnoise import diff_variance, first_plateau, white_factor
+from ._noise import (BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise, recorded_rates, to_grid,
+                     white_noise_recorded)
 
 __all__ = ["noise_kind_step", "degenerate", "gap_mask", "residual_noise_scale",
            "inconsistent_findings", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
            "heading_error", "STILL_MIN_S"]
 
 STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estimate (and 256 rows)
+#: on a still span, a level over this many times the file's rounding (its RMS) is measured (the
+#: rounding is then at most 44 % of the variance, and said)
+ROUNDING_RATIO = 1.5
 
 
 def _longest(mask):
@@ -44,12 +52,114 @@ def _noise_interval(wn, dt):
     return math.sqrt(var * dt), math.sqrt(max(var - half, 0.0) * dt), math.sqrt((var + half) * dt)
 
 
-def noise_kind_step(run, noise, still, vib):
+def noise_kind_step(run, noise, still, vib, by="the reference"):
     """Gyro noise from a span where the reference says the body does not move (rows ``still``),
     else an upper bound: the revised :class:`._records.GyroNoise`. Where the gyro vibrates
     (``vib``, :mod:`._vibration`) the noise was measured on its quiet spans and stays: a body held
-    still by the reference may still shake. Then :func:`_below_the_filter`."""
-    return _below_the_filter(run, _noise_kind(run, noise, still, vib), still, vib)
+    still by the reference may still shake. Where the log says when the motors are off
+    (:func:`_motors_off`), those rows give the estimate instead of quiet spans or a bound. Then
+    :func:`_below_the_filter`. ``by``: what says where the body does not move, in the evidence."""
+    noise = _noise_kind(run, noise, still, vib, by)
+    off = _motors_off_rows(run, noise, vib)
+    if off is not None:
+        noise = _motors_off(run, noise, off, vib)
+        if vib is not None:  # the filter's check on rows both still and with the motors off
+            still = off if still is None else np.asarray(still, bool) & off
+    return _below_the_filter(run, noise, still, vib)
+
+
+#: motors-off rows needed for a noise estimate (a PX4 log armed soon after it starts has 0.5 s)
+MOTORS_OFF_MIN_ROWS = 64
+#: shortest contiguous stretch of motors-off rows that counts (its differences stay inside it)
+MOTORS_OFF_MIN_RUN = 16
+#: the motors-off rows are judged for shaking in pieces of at most this many rows
+MOTORS_OFF_PIECE = 64
+
+
+def _motors_off_rows(run, noise, vib):
+    """Row mask where the log says the motors are off (a PX4 log's ``actuator_armed``), inside the
+    finite segments, in pieces of :data:`MOTORS_OFF_MIN_RUN` to :data:`MOTORS_OFF_PIECE` rows. A
+    disarmed vehicle may still be shaken (a bench test that never sets the flag): pieces whose
+    level (order-4 differences) is over :data:`._vibration.VIBRATION_RATIO` times the quietest
+    piece's are left out, and all of them where even the quietest is not that much below the
+    vibration found (``vib``). None where the log does not say, or holds fewer than
+    :data:`MOTORS_OFF_MIN_ROWS` such rows."""
+    from ._vibration import VIBRATION_RATIO
+
+    armed = run.get("armed")
+    if armed is None or not len(armed["t"]):
+        return None
+    t = run["t"]
+    k = np.clip(np.searchsorted(armed["t"], t, side="right") - 1, 0, None)
+    off = ~np.asarray(armed["armed"], bool)[k]
+    pieces = []
+    for a, b in noise.segments:
+        for i0, i1 in _stretches(off[a:b]):
+            for j in range(a + i0, a + i1, MOTORS_OFF_PIECE):
+                j1 = min(j + MOTORS_OFF_PIECE, a + i1)
+                if j1 - j >= MOTORS_OFF_MIN_RUN:
+                    x, dtr = recorded_rates(run, j, j1)
+                    lev = float(np.mean(np.diff(x, 4, axis=0) ** 2)) / white_factor(4) * (dtr / run["dt"])
+                    pieces.append((j, j1, lev))
+    if not pieces:
+        return None
+    quiet = min(p[2] for p in pieces)
+    if vib is not None and VIBRATION_RATIO**2 * quiet >= float(np.mean(np.square(vib.level))):
+        return None  # the motors-off rows shake as much as the rest: the flag says nothing here
+    mask = np.zeros(len(t), bool)
+    for j, j1, lev in pieces:
+        if lev <= VIBRATION_RATIO**2 * quiet:
+            mask[j:j1] = True
+    return mask if mask.sum() >= MOTORS_OFF_MIN_ROWS else None
+
+
+def _stretches(mask):
+    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def _motors_off(run, noise, off, vib):
+    """The white noise measured where the motors are off (rows ``off``): an estimate that replaces
+    a vibrating log's quiet-span level or an upper bound. The differences' order is chosen on those
+    rows alone (the first two orders that agree, :func:`.._diffnoise.first_plateau`); a level at the
+    file's rounding, or never white there, leaves the noise as it was."""
+    f = noise.finding
+    if f is not None and f.get("estimate_kind", "estimate") == "estimate" and vib is None:
+        return noise  # measured where the reference says the body does not move
+    dt, t = run["dt"], run["t"]
+    runs = _stretches(off)
+    ests = []
+    for k in range(1, 9):
+        parts = []
+        for a, b in runs:
+            x, dtr = recorded_rates(run, a, b)
+            if len(x) - k >= 8:
+                v_, se_, n_ = diff_variance(x, k)
+                parts.append((v_ * (dtr / dt), se_ * (dtr / dt), n_))
+        rows = sum(p[2] for p in parts)
+        if rows < MOTORS_OFF_MIN_ROWS // 2:
+            break
+        v = sum(p[0] * p[2] for p in parts) / rows
+        se = np.sqrt(sum((p[1] * p[2]) ** 2 for p in parts)) / rows
+        ests.append((k, v, se))
+    if len(ests) < 2:
+        return noise
+    (k, v, se), plateau, _ = first_plateau(ests)
+    if not plateau or math.sqrt(float(np.mean(v))) <= noise.floor:
+        return noise
+    wn = {"var": v, "var_se": se, "var_method": 0.0}
+    N, lo, hi = _noise_interval(wn, dt)
+    where = ", ".join(f"{fmt(t[a])}..{fmt(t[b - 1])} s" for a, b in runs[:4]) + (" ..." if len(runs) > 4 else "")
+    sig = np.sqrt(v)
+    return replace(noise, found=True, sigma_axis=noise.sigma_axis if vib is not None else sig,
+                   var_rate=max(float(np.mean(v)) * dt, noise.floor**2 * dt, 1e-24), finding={
+        "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
+        "interval": [lo, hi],
+        "evidence": (
+            f"measured while the motors are off (the log's armed state; {int(off.sum())} rows: t = {where}): "
+            f"order-{k} differences white with per-sample std {', '.join(fmt(x) for x in sig)} rad/s "
+            f"(wx, wy, wz) at dt={fmt(dt)} s; N = {fmt(N)} rad/sqrt(s) = {fmt(np.degrees(N) * 60)} deg/sqrt(h)"),
+    })
 
 
 #: the block means' level replaces the differences' where it is this many times higher (in std)
@@ -72,9 +182,11 @@ def _below_the_filter(run, noise, still, vib):
     for a, b in (vib.spans if vib is not None else []):
         calm &= ~((t >= a) & (t <= b))
     i0, i1 = _longest(calm)
-    bw = block_white_noise(run["w"][i0:i1], dt) if i1 - i0 >= 4 * BLOCK_MIN_BLOCKS else None
-    if bw is None or not bw["plateau"] or bw["m"] == 1 or _rises(run["w"][i0:i1], dt):
+    x, dtr = recorded_rates(run, i0, i1)
+    bw = block_white_noise(x, dtr) if len(x) >= 4 * BLOCK_MIN_BLOCKS else None
+    if bw is None or not bw["plateau"] or bw["m"] == 1 or _rises(x, dtr):
         return noise
+    bw = to_grid(bw, dtr, dt)
     v_blk = float(np.mean(bw["var"]))
     se = float(np.sqrt(np.sum(np.square(bw["var_se"]))) / 3.0)
     # none from the differences: never white there (the filter leaves them coloured to the last order)
@@ -85,14 +197,14 @@ def _below_the_filter(run, noise, still, vib):
     seen = (f"{fmt(N)} rad/sqrt(s), {fmt(N / float(f['estimate']))} times the {fmt(float(f['estimate']))} "
             f"that the differences see near the sampling rate" if v_now > 0 else
             f"{fmt(N)} rad/sqrt(s), where the differences never turn white")
-    ladder = ", ".join(f"{m}: {fmt(math.sqrt(v * dt))}" for m, v, _ in bw["ladder"])
+    ladder = ", ".join(f"{m}: {fmt(math.sqrt(v * dtr))}" for m, v, _ in bw["ladder"])
     return replace(noise, sigma_axis=np.sqrt(bw["var"]), found=True, var_rate=max(v_blk * dt, noise.var_rate),
                    finding={
         "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
         "interval": [lo, hi],
         "evidence": (
             f"the gyro's samples are filtered: while the body does not move (t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s), "
-            f"the means of blocks of {bw['m']} samples ({fmt(bw['m'] * dt)} s) give N = {seen} "
+            f"the means of blocks of {bw['m']} samples ({fmt(bw['m'] * dtr)} s) give N = {seen} "
             f"({fmt(np.degrees(N) * 60)} deg/sqrt(h); N by block size, samples: {ladder}); an angle "
             f"integrates the noise below the filter's cutoff"),
     })
@@ -118,29 +230,41 @@ def _rises(x, dt) -> bool:
     return bool(sm.max() > RISE_RATIO * sm[0])
 
 
-def _noise_kind(run, noise, still, vib):
+def _noise_kind(run, noise, still, vib, by="the reference"):
     if vib is not None:
         return noise
     dt, t = run["dt"], run["t"]
     i0, i1 = _longest(still)
+    why = ("no reference attitude says where the body does not move" if still is None
+           else f"{by} says the body does not move for {fmt((i1 - i0) * dt)} s only (at least "
+                f"{fmt(STILL_MIN_S)} s needed)")
     if i1 - i0 >= max(256, STILL_MIN_S / dt):
-        wn = estimate_white_noise(run["w"][i0:i1], dt)
-        if wn["plateau"] and math.sqrt(float(np.mean(wn["var"]))) > noise.floor:
+        wn = white_noise_recorded(run, i0, i1)
+        level = math.sqrt(float(np.mean(wn["var"])))
+        q = float(run.get("quantisation") or 0.0)
+        # on a still span the level may be close to the file's rounding (a CAN signal's 0.25 deg/s
+        # steps) and still be measured: rounding is white too, and its share is said
+        thr = ROUNDING_RATIO * q if 3.0 * q >= noise.floor else noise.floor  # the floor is the rounding's
+        if wn["plateau"] and level > thr:
             N, lo, hi = _noise_interval(wn, dt)
-            return replace(noise, sigma_axis=wn["sigma"], found=True,
+            # the per-sample spread the fits regress on: the grid's (the level: as recorded)
+            sig = wn["sigma"] if run.get("w_recorded") is None else estimate_white_noise(run["w"][i0:i1], dt)["sigma"]
+            share = (f"; the file's rounding ({fmt(q)} rad/s per sample) is {fmt(100 * q**2 / level**2)} % of "
+                     f"that variance" if level <= noise.floor and q > 0 else "")
+            return replace(noise, sigma_axis=sig, found=True,
                            var_rate=max(float(np.mean(wn["var"])) * dt, noise.floor**2 * dt, 1e-24), finding={
                 "cause": GYRO_NOISE.name, "estimate_kind": "estimate", "estimate": N, "unit": GYRO_NOISE.unit,
                 "interval": [lo, hi],
                 "evidence": (
-                    f"while the reference says the body does not move (t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s), "
+                    f"while {by} says the body does not move (t = {fmt(t[i0])}..{fmt(t[i1 - 1])} s), "
                     f"order-{wn['order']} differences of the rates are white with per-sample std "
                     f"{', '.join(fmt(v) for v in wn['sigma'])} rad/s (wx, wy, wz) at dt={fmt(dt)} s; "
-                    f"N = sigma sqrt(dt) = {fmt(N)} rad/sqrt(s) = {fmt(np.degrees(N) * 60)} deg/sqrt(h)"
+                    f"N = sigma sqrt(dt) = {fmt(N)} rad/sqrt(s) = {fmt(np.degrees(N) * 60)} deg/sqrt(h){share}"
                 ),
             })
-    why = ("no reference attitude says where the body does not move" if still is None
-           else f"the reference says the body does not move for {fmt((i1 - i0) * dt)} s only (at least "
-                f"{fmt(STILL_MIN_S)} s needed)")
+        why = (f"while {by} says the body does not move ({fmt((i1 - i0) * dt)} s), the differences "
+               + ("never turn white" if not wn["plateau"] else
+                  f"are at the file's rounding ({fmt(level)} rad/s per sample, rounding {fmt(q)})"))
     f = noise.finding
     if f is None:
         return noise  # below the file's rounding, or never white (not separable from the motion: a note says so)

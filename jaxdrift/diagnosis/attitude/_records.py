@@ -115,6 +115,7 @@ class Comparison:
     allan_series: np.ndarray | None = None
     allan_label: str | None = None
     said: Said = Said()
+    still_rows: tuple | None = None  # (i0, i1) of the static segment where one gave the biases
 
 
 @dataclass(frozen=True)

@@ -7,7 +7,8 @@ datasheet and weights the reference fit as if that noise integrated like a rando
 vibration averages out between reference rows), and the bias it holds is lost.
 
 :func:`vibration_step` measures the level of the differences (the order the white-noise estimate
-chose) in windows of :data:`WINDOW_S` along every segment. White noise has one level everywhere
+chose) in windows of :data:`WINDOW_S` along every segment, on the rates as recorded
+(:func:`._noise.recorded_rates`). White noise has one level everywhere
 (the windows' levels scatter by a few tens of percent); vibration comes and goes with the motors.
 A window more than :data:`VIBRATION_RATIO` times the quietest window's level vibrates. Where windows
 vibrate:
@@ -35,6 +36,7 @@ import numpy as np
 from .._diffnoise import white_factor
 from ._causes import GYRO_NOISE, VIBRATION
 from ._common import CHANNELS, fmt
+from ._noise import recorded_rates
 from ._records import Said, Vibration
 
 __all__ = ["vibration_step", "WINDOW_S", "VIBRATION_RATIO", "QUIET_RATIO", "QUIET_MIN_ROWS", "PEAK_RATIO"]
@@ -53,15 +55,17 @@ PEAK_RATIO = 8.0
 N_PEAKS = 4
 
 
-def _window_levels(w, segments, k, rows):
+def _window_levels(run, segments, k, rows):
     """Per window (rows ``rows`` long, inside one segment): (i0, i1, per-axis variance of the k-th
-    differences over C(2k, k))."""
+    differences over C(2k, k)), on the rates as recorded (:func:`._noise.recorded_rates`), in
+    per-grid-sample units."""
     ck = white_factor(k)
     out = []
     for a, b in segments:
         for i0 in range(a, b - rows + 1, rows):
-            d = np.diff(w[i0 : i0 + rows], k, axis=0)
-            out.append((i0, i0 + rows, np.mean(d * d, axis=0) / ck))
+            x, dtr = recorded_rates(run, i0, i0 + rows)
+            d = np.diff(x, k, axis=0)
+            out.append((i0, i0 + rows, np.mean(d * d, axis=0) / ck * (dtr / run["dt"])))
     return out
 
 
@@ -116,7 +120,7 @@ def vibration_step(run, noise):
     # damps a hand's or a vehicle's motion (below a tenth of the rate) by 50 times and more
     dt, w, t, k = run["dt"], run["w"], run["t"], max(int(wn["order"]), 4)
     rows = max(64, int(round(WINDOW_S / dt)))
-    win = _window_levels(w, noise.segments, k, rows)
+    win = _window_levels(run, noise.segments, k, rows)
     if len(win) < 4:
         return noise, None, Said()
     lev = np.array([math.sqrt(float(np.mean(v))) for _, _, v in win])  # pooled over the axes
