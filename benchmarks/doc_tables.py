@@ -453,6 +453,12 @@ def heldout3_corpus_table(root: Path) -> str:
     return _corpus_table(load(root, "docs/validation/heldout3_corpus.json"))
 
 
+@block("heldout4-corpus-table", "docs/validation/heldout4_corpus.json")
+def heldout4_corpus_table(root: Path) -> str:
+    """The fourth held-out recordings (``tests/data/heldout4/SOURCES.toml``), as the corpus table."""
+    return _corpus_table(load(root, "docs/validation/heldout4_corpus.json"))
+
+
 # ---------------------------------------------------------------------------------------------
 # schemas: from the code's catalogue and from reports the code wrote
 # ---------------------------------------------------------------------------------------------
