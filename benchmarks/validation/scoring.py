@@ -6,6 +6,8 @@ scoring, not part of the library.
 
 from __future__ import annotations
 
+from jaxdrift.diagnosis.vehicle import nonlinear_cause_names
+
 __all__ = ["score_report"]
 
 
@@ -14,7 +16,7 @@ def _target(d: dict) -> tuple:
 
 
 _AXLE = {"k3": "front", "d3": "front", "f1": "front", "k4": "rear", "d4": "rear", "f2": "rear"}
-_NONLINEAR = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
+_NONLINEAR = nonlinear_cause_names()  # the diagnosis's registry
 
 
 def _as_truth(f: dict, truth: set) -> tuple:

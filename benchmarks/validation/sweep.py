@@ -52,10 +52,12 @@ sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 #: nonlinear suspension causes (``gen_vehicle.design_nonlinear``) and the finding that names a
 #: model-form error without a cause; ``model_form`` counts as right for a nonlinear effect when its
 #: axle is the effect's (front: k3/d3/f1, rear: k4/d4/f2)
-NONLINEAR = ("damper_asymmetry", "progressive_spring", "bump_stop", "tyre_lift_off")
+#: (both from the diagnosis's registries)
+from jaxdrift.diagnosis.vehicle import VEHICLE_CAUSES, nonlinear_cause_names  # noqa: E402
+
+NONLINEAR = nonlinear_cause_names()
 FORM = ("model_form",) + NONLINEAR
-SYSTEMATIC = {"vehicle": ("force_offset", "force_scale", "force_delay", "force_gain_drift", "force_crosstalk",
-                          "parameter_error") + FORM,
+SYSTEMATIC = {"vehicle": tuple(k.name for k in VEHICLE_CAUSES) + FORM,
               "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")}
 NOISE = {"vehicle": ("force_noise",), "attitude": ("gyro_noise", "accel_noise")}
 #: sizing of the committed sweep (fits ~35 min of one core for 200 vehicle + 100 attitude runs)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from typing import ClassVar, final
 
+from .._cause import AbstractCause, NoiseLevel
 from ._common import finding
 
 __all__ = ["AttitudeCause", "GYRO_NOISE", "GYRO_BIAS", "GYRO_SCALE", "GYRO_BIAS_DRIFT", "SENSOR_POSITION",
@@ -19,33 +20,33 @@ __all__ = ["AttitudeCause", "GYRO_NOISE", "GYRO_BIAS", "GYRO_SCALE", "GYRO_BIAS_
            "ATTITUDE_CAUSES"]
 
 
-class AttitudeCause:
-    """A kind of attitude cause (abstract): its report name and the unit of its estimate."""
+class AttitudeCause(AbstractCause):
+    """A kind of attitude cause (abstract; the one abstract cause of every diagnosis is
+    :class:`jaxdrift.diagnosis._cause.AbstractCause`): its report name and the unit of its
+    estimate."""
 
     name: ClassVar[str]
     unit: ClassVar[str]
-
-    def __repr__(self) -> str:
-        return self.name
 
     def finding(self, estimate, interval, evidence: str, z: float, **extra):
         """The report finding (keys in the contract's order) and its ranking statistic ``z``."""
         return finding(self.name, estimate, self.unit, interval, evidence, z, **extra)
 
 
-def _kind(cls_name: str, name: str, unit: str, doc: str) -> type:
-    """A final subclass of :class:`AttitudeCause` (the attitude kinds differ only in these)."""
-    return final(type(cls_name, (AttitudeCause,), {"name": name, "unit": unit, "__doc__": doc,
-                                                    "__module__": __name__}))
+def _kind(cls_name: str, name: str, unit: str, doc: str, capabilities: tuple = ()) -> type:
+    """A final subclass of :class:`AttitudeCause` (the attitude kinds differ only in these and their
+    capability mixins, :mod:`jaxdrift.diagnosis._cause`)."""
+    return final(type(cls_name, (AttitudeCause, *capabilities), {"name": name, "unit": unit, "__doc__": doc,
+                                                                 "__module__": __name__}))
 
 
-GyroNoise = _kind("GyroNoise", "gyro_noise", "rad/sqrt(s)", "Angle random walk of all three axes.")
+GyroNoise = _kind("GyroNoise", "gyro_noise", "rad/sqrt(s)", "Angle random walk of all three axes.", (NoiseLevel,))
 GyroBias = _kind("GyroBias", "gyro_bias", "rad/s", "measured = true + bias, per axis.")
 GyroScale = _kind("GyroScale", "gyro_scale", "ratio", "measured = scale x true, per axis.")
 GyroBiasDrift = _kind("GyroBiasDrift", "gyro_bias_drift", "rad/s/sqrt(s)", "The bias is a random walk of this intensity, per axis.")
 SensorPosition = _kind("SensorPosition", "sensor_position", "m", "An accelerometer's true position = given position + estimate.")
 Nonrigid = _kind("Nonrigid", "nonrigid", "m/s^2", "RMS of the array's rigidity residual beyond its noise.")
-AccelNoise = _kind("AccelNoise", "accel_noise", "m/s^2", "White noise of the accelerometers.")
+AccelNoise = _kind("AccelNoise", "accel_noise", "m/s^2", "White noise of the accelerometers.", (NoiseLevel,))
 Vibration = _kind("Vibration", "vibration", "rad/s", "High-frequency rate content that comes and goes (motors) or has spectral peaks: not white noise; estimate = the largest axis's per-sample level.")
 ReferenceInconsistent = _kind("ReferenceInconsistent", "reference_inconsistent", "rad/s", "The reference attitude turns where the gyro says the body is still: not a gyro error.")
 

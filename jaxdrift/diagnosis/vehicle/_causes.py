@@ -13,7 +13,6 @@ Adding a cause: the numbered recipe in :class:`CauseKind`'s docstring.
 
 from __future__ import annotations
 
-import abc
 import math
 from dataclasses import dataclass, replace
 from typing import ClassVar, final
@@ -22,6 +21,7 @@ import numpy as np
 
 from ...io._corrections import FORCE_CHANNELS, Corrections, ForceCorrection
 from ...io._csvio import MODEL_KEYS
+from .._cause import AbstractCause, ModelParameter, NoiseLevel, SensorEffect
 
 __all__ = ["CauseKind", "Cause", "FORCE_OFFSET", "FORCE_SCALE", "FORCE_DELAY", "FORCE_GAIN_DRIFT",
            "PARAMETER_ERROR", "FORCE_NOISE", "VEHICLE_CAUSES", "SENSOR_KINDS", "kind_named",
@@ -31,12 +31,16 @@ __all__ = ["CauseKind", "Cause", "FORCE_OFFSET", "FORCE_SCALE", "FORCE_DELAY", "
 ALPHA = 1e-3
 
 
-class CauseKind(abc.ABC):
-    """A kind of cause (abstract). Subclasses are final and instantiated once (the registry).
+class CauseKind(AbstractCause):
+    """A kind of linear vehicle cause (abstract; the one abstract cause of every diagnosis is
+    :class:`jaxdrift.diagnosis._cause.AbstractCause`). Subclasses are final, declare their
+    capability (:class:`~jaxdrift.diagnosis._cause.SensorEffect` or
+    :class:`~jaxdrift.diagnosis._cause.ModelParameter`) and are instantiated once (the registry).
 
     Adding a kind (a sensor effect on a force channel or an error of a model parameter):
 
-    1. Write one ``@final`` subclass here: ``name`` (the report's cause), ``unit``, ``words``
+    1. Write one ``@final`` subclass here, with its capability mixin (``SensorEffect`` or
+       ``ModelParameter``): ``name`` (the report's cause), ``unit``, ``words``
        (or :meth:`describe`), ``target_key`` (``"channel"`` or ``"parameter"``) and, where the
        default does not fit, :meth:`candidates`, the coordinate ``theta`` (0 = no effect;
        :meth:`to_estimate`, :meth:`to_theta`, :meth:`interval`), its range (``theta_range`` or
@@ -164,7 +168,7 @@ class CauseKind(abc.ABC):
 
 
 @final
-class ForceOffset(CauseKind):
+class ForceOffset(CauseKind, SensorEffect):
     """A constant offset on a force channel [N]; target ``both``: the same on both."""
 
     name = "force_offset"
@@ -189,7 +193,7 @@ class ForceOffset(CauseKind):
 
 
 @final
-class ForceScale(CauseKind):
+class ForceScale(CauseKind, SensorEffect):
     """A scale error: ``measured = scale x true``; theta = 1/scale - 1."""
 
     name = "force_scale"
@@ -223,7 +227,7 @@ class ForceScale(CauseKind):
 
 
 @final
-class ForceDelay(CauseKind):
+class ForceDelay(CauseKind, SensorEffect):
     """A delay of a force channel [s] (positive: the channel lags)."""
 
     name = "force_delay"
@@ -258,7 +262,7 @@ class ForceDelay(CauseKind):
 
 
 @final
-class ForceGainDrift(CauseKind):
+class ForceGainDrift(CauseKind, SensorEffect):
     """A scale that changes linearly over the run (a strain-gauge transducer warming up):
     ``measured = (1 + drift (t - t_mid)) x scale x true``; theta = drift [1/s]."""
 
@@ -286,7 +290,7 @@ class ForceGainDrift(CauseKind):
 
 
 @final
-class ForceCrosstalk(CauseKind):
+class ForceCrosstalk(CauseKind, SensorEffect):
     """A share of the other force channel read in this one (crosstalk between the channels of one
     amplifier or transducer): ``read = true + share x other's true``, before the channel's own
     gain and offset; theta = share."""
@@ -312,7 +316,7 @@ class ForceCrosstalk(CauseKind):
 
 
 @final
-class ParameterError(CauseKind):
+class ParameterError(CauseKind, ModelParameter):
     """A model parameter off: ``true = ratio x model``; theta = ratio - 1."""
 
     name = "parameter_error"
@@ -350,7 +354,7 @@ class ParameterError(CauseKind):
 
 
 @final
-class ForceNoise:
+class ForceNoise(AbstractCause, NoiseLevel):
     """White noise on the force samples [N] (not a parameter of the comparison: a level)."""
 
     name = "force_noise"

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from .._cause import AbstractCause, SignalDetector, StateForce
 from .._diffnoise import mad_sigma
 from ._discretise import _poly_coeffs
 
@@ -41,8 +42,9 @@ class States:
     p: dict
 
 
-class NonlinearCause:
-    """Base: ``axle`` 0 (front, k3/d3) or 1 (rear, k4/d4)."""
+class NonlinearCause(AbstractCause, StateForce):
+    """A state-dependent force term (abstract; capability :class:`.._cause.StateForce`): ``axle`` 0
+    (front, k3/d3) or 1 (rear, k4/d4)."""
 
     name = ""
     unit = ""
@@ -382,7 +384,7 @@ def signatures(pipe, p: dict, delta: tuple) -> dict:
     return ch
 
 
-class TyreLiftOff:
+class TyreLiftOff(AbstractCause, SignalDetector):
     """The tyre force cannot pull: where the wheel leaves the road the measured force sits at its
     floor (the sensor's zero) instead of going below it. The force-driven comparison takes the
     measured forces as they are, so no residual shows it; the forces themselves do: an atom of

@@ -1,0 +1,97 @@
+"""The one abstract cause every diagnosis names, and the capabilities a cause may have.
+
+Every cause of the vehicle and attitude diagnoses is an :class:`AbstractCause`: a report name and
+the unit of its estimate. What a cause can do is a capability, an abstract mixin (as diffrax's
+solvers declare ``AbstractAdaptiveSolver``): code that needs a capability asks for the mixin,
+never for a concrete class, and each concrete cause is final and owns its behaviour.
+
+- :class:`SensorEffect`: what a sensor does to one recorded channel (the forward effect a generator
+  applies) and its inverse (the correction the diagnosis applies): the vehicle's force offset,
+  scale, delay, gain drift and crosstalk.
+- :class:`ModelParameter`: an error of a parameter of the vehicle model (the true model a
+  generator simulates, the model the diagnosis corrects).
+- :class:`StateForce`: a force the linear model lacks, a function of its own states, per unit of
+  the cause's size (damper asymmetry, progressive spring, bump stop, the bare state terms).
+- :class:`SignalDetector`: a cause read off a measured signal by a detector, not fitted (a tyre
+  that lifts off).
+- :class:`NoiseLevel`: a white-noise level, reported as an estimate or an upper bound.
+
+The registries stay with their diagnoses (``vehicle._causes.VEHICLE_CAUSES``,
+``vehicle._nonlinear.catalogue``, ``attitude._causes.ATTITUDE_CAUSES``);
+:func:`jaxdrift.diagnosis.registered_causes` lists them all.
+"""
+
+from __future__ import annotations
+
+import abc
+from typing import ClassVar
+
+__all__ = ["AbstractCause", "SensorEffect", "ModelParameter", "StateForce", "SignalDetector", "NoiseLevel"]
+
+
+class AbstractCause(abc.ABC):
+    """A cause a diagnosis names (abstract): ``name`` (the report's ``cause``) and ``unit`` (of its
+    estimate). Subclasses are final; their instances are registered once."""
+
+    name: ClassVar[str]
+    unit: ClassVar[str]
+
+    def __repr__(self) -> str:
+        return self.name
+
+
+class SensorEffect(abc.ABC):
+    """Capability: a sensor effect on one recorded channel, with its forward effect (``forward``,
+    at its ``forward_stage`` in the sensor's chain) and its inverse (``adjust``: the channel's
+    correction record with the effect added)."""
+
+    @abc.abstractmethod
+    def forward(self, measured: dict, target: str, value: float, read) -> dict:
+        """The measured channels with the effect applied (a generator's forward model)."""
+
+    @abc.abstractmethod
+    def adjust(self, c, theta: float):
+        """The channel's correction record with this effect's inverse added."""
+
+
+class ModelParameter(abc.ABC):
+    """Capability: an error of a model parameter (``true_model`` for a generator, ``correct`` for
+    the diagnosis)."""
+
+    @abc.abstractmethod
+    def true_model(self, model: dict, target: str, value: float) -> dict:
+        """The vehicle's true model, given the model the user has and the error."""
+
+    @abc.abstractmethod
+    def correct(self, model: dict, params: dict, corr, target: str, theta: float):
+        """The model and corrections with the error undone."""
+
+
+class StateForce(abc.ABC):
+    """Capability: a force the linear model lacks, a function of the model's own states (``force``
+    per unit of the size ``theta``, its plausible range ``bounds``)."""
+
+    @abc.abstractmethod
+    def force(self, st) -> object:
+        """The extra spring force per unit theta at the states ``st`` [N]."""
+
+    @abc.abstractmethod
+    def bounds(self, st) -> tuple[float, float]:
+        """The plausible range of theta at the states ``st``."""
+
+
+class SignalDetector(abc.ABC):
+    """Capability: read off a measured signal by a detector (``detect``), reported by ``finding``."""
+
+    @abc.abstractmethod
+    def detect(self, signal, sigma: float) -> dict | None:
+        """What the detector found in the signal, or None."""
+
+    @abc.abstractmethod
+    def finding(self, det: dict) -> dict:
+        """The report finding of a detection."""
+
+
+class NoiseLevel(abc.ABC):
+    """Capability: a white-noise level, an estimate or an upper bound (``estimate_kind``). The
+    steps that measure it write its finding; the level is not a parameter of a fit."""
