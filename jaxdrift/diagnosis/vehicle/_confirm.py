@@ -24,7 +24,10 @@ import numpy as np
 
 from ._causes import _apply
 from ._problem import Fit, _gauss_newton, _Problem
-from ._report import _kept, _rms, _telling_channel, cause_findings
+from ._report import cause_findings
+from ._residuals import kept as _kept
+from ._residuals import rms as _rms
+from ._residuals import telling_channel as _telling_channel
 from ._select import Selection, _covariance
 
 

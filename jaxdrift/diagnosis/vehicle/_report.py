@@ -13,14 +13,12 @@ from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, 
                          lowband_cutoff, written_digits)
 from ._problem import _Problem
 from ._residuals import Residuals
+from ._residuals import kept as _kept
+from ._residuals import rms as _rms
+from ._residuals import telling_channel as _telling_channel
 
 SCHEMA = "jaxdrift.diagnosis/1"
 
-
-
-def _rms(x) -> float:
-    x = np.asarray(x, dtype=float)
-    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
 
 def _chi2_sigma_interval(sigma: float, dof: float) -> tuple[float, float]:
@@ -67,28 +65,6 @@ _CHANNEL_WORDS = {"moment": "enforced moment", "heave": "vertical enforced force
                   "static": "static load at the first sample"}
 _CHANNEL_UNITS = {"moment": "N m", "heave": "N", "spring1": "N", "spring2": "N", "tyre1": "N", "tyre2": "N",
                   "static": "N"}
-
-
-def _telling_channel(prob: "_Problem", before: "Residuals", after: "Residuals", default: str) -> str:
-    """The residual channel where a correction shows most: the largest drop of the residual sum of
-    squares in units of the channel's noise (the enforced moment when nothing drops clearly)."""
-    best, best_drop = default, 0.0
-    for nm in prob.names:
-        if nm == "static":
-            continue
-        a = _kept(prob, before, nm) / prob.noise_std[nm]
-        b = _kept(prob, after, nm) / prob.noise_std[nm]
-        drop = float(a @ a - b @ b)
-        if drop > best_drop * 1.5 or (best == default and drop > best_drop):
-            best, best_drop = nm, drop
-    return best
-
-
-
-def _kept(prob: "_Problem", res: "Residuals", nm: str) -> np.ndarray:
-    """The rows of channel ``nm`` the comparison uses (the record's end, and a low-passed
-    channel's start, left out)."""
-    return res.channels[nm][prob.skip[nm]:prob.skip[nm] + prob.rows[nm]]
 
 
 #: the forces' 4th-difference level over the residual's low-band level above which the force

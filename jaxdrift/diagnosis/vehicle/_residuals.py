@@ -525,3 +525,31 @@ class ResidualPipeline:
         f1s = p["m1"] * g + a * m3 * g / (a + b)
         f2s = p["m2"] * g + b * m3 * g / (a + b)
         return np.array([first["f1"] - f1s, first["f2"] - f2s])
+
+
+# ----------------------------------------------------------------------------- channel helpers
+def rms(x) -> float:
+    """Root mean square (0 for an empty array)."""
+    x = np.asarray(x, dtype=float)
+    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
+
+
+def kept(prob, res: Residuals, nm: str) -> np.ndarray:
+    """The rows of channel ``nm`` the comparison uses (the record's end, and a low-passed
+    channel's start, left out)."""
+    return res.channels[nm][prob.skip[nm]:prob.skip[nm] + prob.rows[nm]]
+
+
+def telling_channel(prob, before: Residuals, after: Residuals, default: str) -> str:
+    """The residual channel where a correction shows most: the largest drop of the residual sum of
+    squares in units of the channel's noise (the enforced moment when nothing drops clearly)."""
+    best, best_drop = default, 0.0
+    for nm in prob.names:
+        if nm == "static":
+            continue
+        a = kept(prob, before, nm) / prob.noise_std[nm]
+        b = kept(prob, after, nm) / prob.noise_std[nm]
+        drop = float(a @ a - b @ b)
+        if drop > best_drop * 1.5 or (best == default and drop > best_drop):
+            best, best_drop = nm, drop
+    return best
