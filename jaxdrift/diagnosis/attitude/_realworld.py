@@ -22,11 +22,11 @@ from dataclasses import replace
 import numpy as np
 from scipy import stats
 
-from ...io._timebase import longest_run
+from ...io._timebase import longest_run, true_runs
 from ...models._quaternion import quat_to_euler_np, rotation_matrix_np
 from ._causes import GYRO_NOISE, REFERENCE_INCONSISTENT
 from ._common import fmt
-from .._diffnoise import diff_variance, first_plateau, white_factor
+from .._diffnoise import diff_variance, first_plateau
 from ._noise import (BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise, recorded_rates, to_grid,
                      white_noise_recorded)
 
@@ -60,6 +60,9 @@ def noise_kind_step(run, noise, still, vib, by="the reference"):
     (:func:`_motors_off`), those rows give the estimate instead of quiet spans or a bound. Then
     :func:`_below_the_filter`. ``by``: what says where the body does not move, in the evidence."""
     noise = _noise_kind(run, noise, still, vib, by)
+    f = noise.finding
+    if vib is None and f is not None and f.get("estimate_kind", "estimate") == "estimate":
+        return _below_the_filter(run, noise, still, vib)  # measured where the body does not move
     off = _motors_off_rows(run, noise, vib)
     if off is not None:
         noise = _motors_off(run, noise, off, vib)
@@ -84,7 +87,7 @@ def _motors_off_rows(run, noise, vib):
     piece's are left out, and all of them where even the quietest is not that much below the
     vibration found (``vib``). None where the log does not say, or holds fewer than
     :data:`MOTORS_OFF_MIN_ROWS` such rows."""
-    from ._vibration import VIBRATION_RATIO
+    from ._vibration import VIBRATION_RATIO, _window_levels
 
     armed = run.get("armed")
     if armed is None or not len(armed["t"]):
@@ -92,15 +95,9 @@ def _motors_off_rows(run, noise, vib):
     t = run["t"]
     k = np.clip(np.searchsorted(armed["t"], t, side="right") - 1, 0, None)
     off = ~np.asarray(armed["armed"], bool)[k]
-    pieces = []
-    for a, b in noise.segments:
-        for i0, i1 in _stretches(off[a:b]):
-            for j in range(a + i0, a + i1, MOTORS_OFF_PIECE):
-                j1 = min(j + MOTORS_OFF_PIECE, a + i1)
-                if j1 - j >= MOTORS_OFF_MIN_RUN:
-                    x, dtr = recorded_rates(run, j, j1)
-                    lev = float(np.mean(np.diff(x, 4, axis=0) ** 2)) / white_factor(4) * (dtr / run["dt"])
-                    pieces.append((j, j1, lev))
+    stretches = [(a + i0, a + i1) for a, b in noise.segments for i0, i1 in true_runs(off[a:b])]
+    pieces = [(j, j1, float(np.mean(v)))
+              for j, j1, v in _window_levels(run, stretches, 4, MOTORS_OFF_PIECE, MOTORS_OFF_MIN_RUN)]
     if not pieces:
         return None
     quiet = min(p[2] for p in pieces)
@@ -113,21 +110,14 @@ def _motors_off_rows(run, noise, vib):
     return mask if mask.sum() >= MOTORS_OFF_MIN_ROWS else None
 
 
-def _stretches(mask):
-    edges = np.flatnonzero(np.diff(np.r_[0, mask.astype(np.int8), 0]))
-    return list(zip(edges[::2], edges[1::2]))
-
-
 def _motors_off(run, noise, off, vib):
     """The white noise measured where the motors are off (rows ``off``): an estimate that replaces
-    a vibrating log's quiet-span level or an upper bound. The differences' order is chosen on those
+    a vibrating log's quiet-span level or an upper bound (:func:`noise_kind_step` does not ask
+    where a still span gave the estimate). The differences' order is chosen on those
     rows alone (the first two orders that agree, :func:`.._diffnoise.first_plateau`); a level at the
     file's rounding, or never white there, leaves the noise as it was."""
-    f = noise.finding
-    if f is not None and f.get("estimate_kind", "estimate") == "estimate" and vib is None:
-        return noise  # measured where the reference says the body does not move
     dt, t = run["dt"], run["t"]
-    runs = _stretches(off)
+    runs = true_runs(off)
     ests = []
     for k in range(1, 9):
         parts = []

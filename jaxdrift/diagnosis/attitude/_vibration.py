@@ -55,17 +55,21 @@ PEAK_RATIO = 8.0
 N_PEAKS = 4
 
 
-def _window_levels(run, segments, k, rows):
-    """Per window (rows ``rows`` long, inside one segment): (i0, i1, per-axis variance of the k-th
-    differences over C(2k, k)), on the rates as recorded (:func:`._noise.recorded_rates`), in
-    per-grid-sample units."""
+def _window_levels(run, segments, k, rows, min_rows=None):
+    """Per window (rows ``rows`` long, inside one segment; a segment's last, shorter window too
+    where it has ``min_rows``): (i0, i1, per-axis variance of the k-th differences over C(2k, k)),
+    on the rates as recorded (:func:`._noise.recorded_rates`), in per-grid-sample units."""
     ck = white_factor(k)
+    min_rows = rows if min_rows is None else min_rows
     out = []
     for a, b in segments:
-        for i0 in range(a, b - rows + 1, rows):
-            x, dtr = recorded_rates(run, i0, i0 + rows)
+        for i0 in range(a, b, rows):
+            i1 = min(i0 + rows, b)
+            if i1 - i0 < min_rows:
+                continue
+            x, dtr = recorded_rates(run, i0, i1)
             d = np.diff(x, k, axis=0)
-            out.append((i0, i0 + rows, np.mean(d * d, axis=0) / ck * (dtr / run["dt"])))
+            out.append((i0, i1, np.mean(d * d, axis=0) / ck * (dtr / run["dt"])))
     return out
 
 
