@@ -600,6 +600,9 @@ def main(argv=None):
                          "sweep of the nonlinear causes' intervals)")
     ap.add_argument("--jobs", type=int, default=1, help="worker processes (default 1)")
     ap.add_argument("--chunk", default="0/1", help="i/k: only the cases with index = i mod k")
+    ap.add_argument("--only", default=None, metavar="CAUSE",
+                    help="only the cases whose design holds this cause (e.g. bump_stop), for a question about "
+                         "one kind's intervals; the summary then counts those cases only")
     ap.add_argument("--report-only", action="store_true", help="summarise the cache, run nothing")
     ap.add_argument("--keep-runs", help="keep the generated files in this folder")
     ap.add_argument("--no-simulation", action="store_true",
@@ -620,6 +623,8 @@ def main(argv=None):
              "gain_drift": getattr(gen, "design_gain_drift", None),
              "crosstalk": getattr(gen, "design_crosstalk", None)}[design]
     cases = cases(a.n, a.seed) if a.free_share is None else cases(a.n, a.seed, free_share=a.free_share)
+    if a.only:
+        cases = [c for c in cases if any(w[0] == a.only for w in c.get("what", []))]
     i, k = (int(x) for x in a.chunk.split("/"))
     todo = [c for c in cases if c["index"] % k == i
             and not os.path.exists(os.path.join(cache, f"{c['index']:04d}.json"))]
@@ -653,7 +658,9 @@ def main(argv=None):
     cmd = (f"python benchmarks/validation/sweep.py --kind {a.kind} --n {a.n} --seed {a.seed} "
            f"--out {a.out}" + (f" --prefix {a.prefix}" if a.prefix else "")
            + (" --no-simulation" if a.no_simulation and a.kind == "vehicle" else "")
-           + (f" --design {design}" if design != "standard" else "") + " --jobs 1")
+           + (f" --design {design}" if design != "standard" else "")
+           + (f" --free-share {a.free_share}" if a.free_share is not None else "")
+           + (f" --only {a.only}" if a.only else "") + " --jobs 1")
     summ = summarise(a.kind, results, {"seed": a.seed, "n_design": a.n, "command": cmd,
                                        "sizing": sizing, "jaxdrift_commit": a.diagnosed_by or _commit()})
     if nonlinear:

@@ -48,14 +48,6 @@ PRACTICAL = 0.01
 BAND_HZ = 30.0
 #: order of the AR whitening filter
 AR_ORDER = 8
-#: the relative resolution of a nonlinear cause's size: its 95 % interval is never narrower than
-#: +- this share of the estimate. The statistical interval can fall far below what the model
-#: resolves: with the travel measured, +-1e-5 of the size around estimates off by up to 2.7e-4
-#: (nonlinear sweep seed 20261204); a stop seen in pitch rate only, +-0.25 % around an estimate
-#: 0.32 % low (``tests/test_diagnose_vehicle_nonlinear.py``, the stop beside an offset). The
-#: diagnosis's model and the generator's are integrated and sampled differently, and a real
-#: vehicle's spring law is no closer to the catalogue's form than that
-RESOLUTION = 5e-3
 #: the power asked of a 'could show': the largest usual size must pass with this probability
 POWER_Z = 1.645
 _UNITS = {"moment": "N m", "heave": "N", "spring1": "N", "spring2": "N", "tyre1": "N", "tyre2": "N"}
@@ -263,7 +255,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
             th = min(max(th, lo), hi)
             est = c.to_estimate(th, st)
             iv = sorted((c.to_estimate(max(th_iv[0], lo), st), c.to_estimate(min(th_iv[1], hi), st)))
-            iv = [min(iv[0], est - RESOLUTION * abs(est)), max(iv[1], est + RESOLUTION * abs(est))]
+            iv = [min(iv[0], est - c.resolution * abs(est)), max(iv[1], est + c.resolution * abs(est))]
             ev = (f"{c.describe(th, st)[0].upper()}{c.describe(th, st)[1:]}: the {_WORDS[nm]} left after the "
                   f"fit grows with {phrase} (compared below {band[1]:.3g} Hz, z = {z:.1f}); with the correction its "
                   f"RMS in that band {'falls' if after < before else 'rises'} from {before:.4g} to {after:.4g} {_UNITS[nm]}")

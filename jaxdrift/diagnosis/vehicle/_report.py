@@ -98,20 +98,24 @@ def _sensor_noise(prob: "_Problem") -> bool:
                for v in prob.motion_noise.values())
 
 
-def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
+def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarray | None = None) -> dict:
     """The force-noise level with its 95 % interval and the sentence saying where it comes from.
 
     Runs with a residual to compare: the low band of the residual left after the fit (see
     ``_Problem.lowband_noise``), or the forces' 4th differences where they give less (sensor noise
     on the measured motion left in the band reads as force noise in the residual). Forces only:
-    the 4th differences, an upper bound."""
+    the 4th differences, an upper bound. ``r``: the weighted residual of the extended model where
+    it differs from the fit's (a nonlinear force refitted after the linear causes were chosen);
+    default the fit's."""
     run = prob.pipe.run
     dynamic = len(sel.fit.r) > 2
+    full = sel.sigma if r is None else math.sqrt(float(r @ r) / max(len(r) - len(sel.fit.causes), 1))
+    r = sel.fit.r if r is None else r
     notes = []
     kind = "estimate"  # or "upper_bound": a level the noise cannot exceed, interval from 0
     if dynamic:
         sigma, with_motion, dof = prob.lowband_levels(
-            sel.fit.r, {ch: corr_ext[ch].gain for ch in FORCE_CHANNELS},
+            r, {ch: corr_ext[ch].gain for ch in FORCE_CHANNELS},
             prob.impulse_responses(p_ext)[0])
         lo, hi = _chi2_sigma_interval(sigma, dof)
         found = sigma > NOISE_MIN_N  # decided on the low band, before a smaller bound replaces it
@@ -119,7 +123,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict) -> dict:
         src = (f"below {fc:.3g} Hz, inside the model's bandwidth, the residual left after the "
                f"fit has the power that white force noise of {sigma:.3g} N would give it "
                f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
-               f"to {sel.sigma:.3g} N including the comparison's own discretisation error)")
+               f"to {full:.3g} N including the comparison's own discretisation error)")
         hf, hf_lo, hf_hi = _force_hf_noise(run)
         from_lowband = not (prob.pipe.band and hf < sigma)  # else the 4th differences give less
         if not from_lowband:
