@@ -10,6 +10,7 @@ from __future__ import annotations
 from ._cause import AbstractCause as AbstractCause
 from ._cause import ModelParameter as ModelParameter
 from ._cause import NoiseLevel as NoiseLevel
+from ._cause import RateEffect as RateEffect
 from ._cause import SensorEffect as SensorEffect
 from ._cause import SignalDetector as SignalDetector
 from ._cause import StateForce as StateForce
@@ -19,7 +20,7 @@ from ._series import vehicle_series as vehicle_series
 from .attitude import run_attitude_diagnosis as run_attitude_diagnosis
 from .vehicle import diagnose_vehicle_run as diagnose_vehicle_run
 
-__all__ = ['AbstractCause', 'ModelParameter', 'NoiseLevel', 'SensorEffect', 'SignalDetector', 'StateForce',
+__all__ = ['AbstractCause', 'ModelParameter', 'NoiseLevel', 'RateEffect', 'SensorEffect', 'SignalDetector', 'StateForce',
            'diagnose_vehicle_run', 'joint_intervals', 'registered_causes', 'robust_diff_sigma',
            'run_attitude_diagnosis', 'vehicle_series']
 

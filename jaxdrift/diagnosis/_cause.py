@@ -15,6 +15,9 @@ never for a concrete class, and each concrete cause is final and owns its behavi
 - :class:`SignalDetector`: a cause read off a measured signal by a detector, not fitted (a tyre
   that lifts off).
 - :class:`NoiseLevel`: a white-noise level, reported as an estimate or an upper bound.
+- :class:`RateEffect`: what a gyro does to the three body rates (the forward effect a generator
+  applies, at its ``forward_stage``) and its inverse (the correction the diagnosis applies): the
+  attitude's gyro scale and bias.
 
 The registries stay with their diagnoses (``vehicle._causes.VEHICLE_CAUSES``,
 ``vehicle._nonlinear.catalogue``, ``attitude._causes.ATTITUDE_CAUSES``);
@@ -26,7 +29,8 @@ from __future__ import annotations
 import abc
 from typing import ClassVar
 
-__all__ = ["AbstractCause", "SensorEffect", "ModelParameter", "StateForce", "SignalDetector", "NoiseLevel"]
+__all__ = ["AbstractCause", "SensorEffect", "ModelParameter", "StateForce", "SignalDetector", "NoiseLevel",
+           "RateEffect"]
 
 
 class AbstractCause(abc.ABC):
@@ -95,3 +99,21 @@ class SignalDetector(abc.ABC):
 class NoiseLevel(abc.ABC):
     """Capability: a white-noise level, an estimate or an upper bound (``estimate_kind``). The
     steps that measure it write its finding; the level is not a parameter of a fit."""
+
+
+class RateEffect(abc.ABC):
+    """Capability: an effect of a gyro on the body rates ``w`` ``(n, 3)`` [rad/s], with its forward
+    effect (``forward``: what the sensor does to the true rates) and its inverse (``inverse``: the
+    correction). ``value`` broadcasts against ``w``: one per axis, or a path ``(n, 3)`` (a bias that
+    drifts). Effects compose in the order of their ``forward_stage`` (lower first); the inverse
+    undoes them in the reverse order."""
+
+    forward_stage: ClassVar[int]
+
+    @abc.abstractmethod
+    def forward(self, w, value):
+        """The rates with the effect applied."""
+
+    @abc.abstractmethod
+    def inverse(self, w, value):
+        """The rates with the effect undone: ``inverse(forward(w, v), v) == w``."""

@@ -17,6 +17,7 @@ import os
 
 import numpy as np
 
+from ..diagnosis.attitude import gyro_forward
 from ..models._ins import gyro_errors, vehicle_motion
 from ..models._quaternion import rotation_matrix_np, skew_np
 
@@ -101,7 +102,7 @@ def make_attitude_run(
     q = motion.quaternion(tl)
     w_true = motion.body_rates(tl)
     err = gyro_errors(rng, n, dt, arw=arw, bias=bias, rrw=rrw)
-    w_meas = np.asarray(scale, float) * w_true + err
+    w_meas = gyro_forward(w_true, scale, err)  # the gyro's chain (the diagnosis undoes it with gyro_inverse)
     q_ref = None
     if reference is not None:
         q_ref = q * np.where(rng.random(n) < 0.5, 1.0, -1.0)[:, None]  # q and -q are the same attitude

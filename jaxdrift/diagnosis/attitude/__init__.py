@@ -14,6 +14,7 @@ from ._diagnose import (
 )
 
 from ._report import write_plots as write_plots
+from ._causes import gyro_forward as gyro_forward, gyro_inverse as gyro_inverse
 
-__all__ = ['analysed_part', 'diagnose_attitude', 'estimate_white_noise', 'read_attitude_run', 'read_sensors',
-           'run_attitude_diagnosis', 'sensor_positions', 'write_plots']
+__all__ = ['analysed_part', 'diagnose_attitude', 'estimate_white_noise', 'gyro_forward', 'gyro_inverse',
+           'read_attitude_run', 'read_sensors', 'run_attitude_diagnosis', 'sensor_positions', 'write_plots']

@@ -20,7 +20,7 @@ from scipy import stats
 
 from ...models._quaternion import skew_np
 from .._diffnoise import first_plateau, white_factor
-from ._causes import ACCEL_NOISE, GYRO_BIAS, NONRIGID, SENSOR_POSITION
+from ._causes import ACCEL_NOISE, GYRO_BIAS, NONRIGID, SENSOR_POSITION, gyro_inverse
 from ._records import Comparison, Said
 from ._common import BIAS_FLOOR, CHANNELS, NONRIGID_FLOOR, POSITION_AGREE_CHI2, POSITION_CHI2, RIGID_BAND_HZ, Z_SIGNIFICANT, fmt
 
@@ -316,7 +316,7 @@ def array_step(run, positions, noise, comp: Comparison) -> Comparison:
     model = comp.model
     N = positions.shape[0]
     fit_bias = model.bias_source is None
-    w_use = (run["w"] - model.bias_path) / model.scale
+    w_use = gyro_inverse(run["w"], model.scale, model.bias_path)
     af = array_fit(run["acc"], positions, w_use, run["dt"], noise.sigma_axis, fit_bias=fit_bias)
     observed = [f"accelerometer array of {N} sensors (rigid-body residual, sensor positions)"]
     nb = len(af["blocks"])

@@ -12,10 +12,12 @@ from __future__ import annotations
 
 from typing import ClassVar, final
 
-from .._cause import AbstractCause, NoiseLevel
+import numpy as np
+
+from .._cause import AbstractCause, NoiseLevel, RateEffect
 from ._common import finding
 
-__all__ = ["AttitudeCause", "GYRO_NOISE", "GYRO_BIAS", "GYRO_SCALE", "GYRO_BIAS_DRIFT", "SENSOR_POSITION",
+__all__ = ["AttitudeCause", "gyro_forward", "gyro_inverse", "GYRO_NOISE", "GYRO_BIAS", "GYRO_SCALE", "GYRO_BIAS_DRIFT", "SENSOR_POSITION",
            "NONRIGID", "ACCEL_NOISE", "REFERENCE_INCONSISTENT", "VIBRATION",
            "ATTITUDE_CAUSES"]
 
@@ -41,8 +43,37 @@ def _kind(cls_name: str, name: str, unit: str, doc: str, capabilities: tuple = (
 
 
 GyroNoise = _kind("GyroNoise", "gyro_noise", "rad/sqrt(s)", "Angle random walk of all three axes.", (NoiseLevel,))
-GyroBias = _kind("GyroBias", "gyro_bias", "rad/s", "measured = true + bias, per axis.")
-GyroScale = _kind("GyroScale", "gyro_scale", "ratio", "measured = scale x true, per axis.")
+
+
+@final
+class GyroScale(AttitudeCause, RateEffect):
+    """measured = scale x true, per axis (the first stage of the gyro's chain)."""
+
+    name, unit = "gyro_scale", "ratio"
+    forward_stage = 0
+
+    def forward(self, w, value):
+        return np.asarray(value, float) * w
+
+    def inverse(self, w, value):
+        return w / np.asarray(value, float)
+
+
+@final
+class GyroBias(AttitudeCause, RateEffect):
+    """measured = true + bias, per axis (after the scale; a path ``(n, 3)`` where the bias
+    drifts)."""
+
+    name, unit = "gyro_bias", "rad/s"
+    forward_stage = 1
+
+    def forward(self, w, value):
+        return w + value
+
+    def inverse(self, w, value):
+        return w - value
+
+
 GyroBiasDrift = _kind("GyroBiasDrift", "gyro_bias_drift", "rad/s/sqrt(s)", "The bias is a random walk of this intensity, per axis.")
 SensorPosition = _kind("SensorPosition", "sensor_position", "m", "An accelerometer's true position = given position + estimate.")
 Nonrigid = _kind("Nonrigid", "nonrigid", "m/s^2", "RMS of the array's rigidity residual beyond its noise.")
@@ -56,3 +87,15 @@ REFERENCE_INCONSISTENT = ReferenceInconsistent()
 VIBRATION = Vibration()
 ATTITUDE_CAUSES = (GYRO_NOISE, GYRO_BIAS, GYRO_SCALE, GYRO_BIAS_DRIFT, SENSOR_POSITION, NONRIGID, ACCEL_NOISE,
                    REFERENCE_INCONSISTENT, VIBRATION)
+
+
+def gyro_forward(w_true, scale, additive):
+    """The gyro's chain on the true rates: its scale, then the additive errors ``additive`` (the
+    bias, its drift and the noise; per axis or a path ``(n, 3)``): what a generator records."""
+    return GYRO_BIAS.forward(GYRO_SCALE.forward(w_true, scale), additive)
+
+
+def gyro_inverse(w, scale, bias_path):
+    """The correction of measured rates ``w``: the bias (path) taken off, then the scale divided
+    out (the chain of :func:`gyro_forward` undone in reverse order)."""
+    return GYRO_SCALE.inverse(GYRO_BIAS.inverse(w, bias_path), scale)

@@ -38,7 +38,7 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_angle_between_np,
 )
-from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE
+from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE, gyro_inverse
 from ._array import array_step
 from ._consistency import consistency, still_rows
 from ._realworld import (
@@ -512,7 +512,7 @@ def _reference_attitude_error(run, segments, ref_spans, model, n_ref, ref_rows, 
     """Attitude error integrated from the first reference row of each segment (a gap restarts it on
     the reference), before and after the corrections of ``model``: its comparison."""
     t, dt, w, q_ref = run["t"], run["dt"], run["w"], run["q_ref"]
-    w_corr = (w - model.bias_path) / model.scale
+    w_corr = gyro_inverse(w, model.scale, model.bias_path)
     e_before, e_after, rows = [], [], []
     # restart at each gap and after each short span where the reference is inconsistent (a reset
     # would otherwise stay in the error for the rest of the run); rows inside such a span are not
@@ -571,7 +571,7 @@ def _reference_attitude_error(run, segments, ref_spans, model, n_ref, ref_rows, 
         dq = quat_multiply_np(quat_conjugate_np(q_ref[:-1]), q_ref[1:])
         w_ref = quat_log_np(dq) / dt
         good = np.isfinite(w_ref).all(1) & np.isfinite(w[:-1]).all(1)
-        series = (w[:-1] - model.scale * w_ref)[good]
+        series = GYRO_BIAS.inverse(w[:-1], GYRO_SCALE.forward(w_ref, model.scale))[good]
         label = "gyro minus reference-derived rate"
     return Comparison(model, sim_err=sim_err, gain=gain, plots=plots, allan_series=series, allan_label=label)
 
