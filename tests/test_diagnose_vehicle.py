@@ -124,7 +124,11 @@ def test_clean_run_reports_none(scipy_clean_run):
     cols, _ = scipy_clean_run
     rep = diagnose_vehicle_run(_run(cols), gs.SEED_MODEL, with_simulation=False)
     assert rep["findings"][0]["cause"] == "none", rep["findings"]
-    assert len(rep["findings"]) == 1
+    # never silence about the noise: below the comparison's floor, that floor is the bound
+    assert [f["cause"] for f in rep["findings"]] == ["none", "force_noise"], rep["findings"]
+    bound = rep["findings"][1]
+    assert bound["estimate_kind"] == "upper_bound" and bound["interval"][0] == 0.0
+    assert 0.0 <= bound["estimate"] <= bound["interval"][1] <= 0.5, bound
     # k1, k2, d1, d2 never enter the force-driven equations
     assert any("d1, d2, k1, k2" in n for n in rep["notes"])
 

@@ -130,6 +130,13 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         findings.append(FORCE_NOISE.finding(sigma, 0.0, b, "upper_bound", (
             f"Too small to measure, at most {b:.3g} N: {src} (below the {NOISE_MIN_N:g} N a level is "
             f"reported at); the bound is the upper end of that level's 95 % interval.")))
+    # below the comparison's own floor: still a statement, the floor as the bound (after the joint
+    # widening, which it does not take part in: the floor is no statistical interval)
+    b = max(noise["bound"], NOISE_CONFIRMED_MIN_N)
+    floor_bound = None if (noise["found"] or sigma >= NOISE_CONFIRMED_MIN_N) else FORCE_NOISE.finding(
+        sigma, 0.0, b, "upper_bound", (
+            f"At most {b:.3g} N, the comparison's own floor: {src}; a force noise below "
+            f"{NOISE_CONFIRMED_MIN_N:g} N cannot be told from the comparison's own error."))
     findings = form["findings"] + findings
     findings = _stand_ins(findings, form.get("unseen") or [])
     # logger faults (found by the reader before anything was fitted; the run is their sound part)
@@ -143,6 +150,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         findings.append({"cause": "none", "evidence": (
             "no systematic cause passes the test and " + noise["source"] +
             ", indistinguishable from the numerical floor of the comparison.")})
+    if floor_bound is not None:
+        findings.append(floor_bound)
     notes += identifiability_notes(prob, sel) + form["notes"]
 
     # extended model and gain

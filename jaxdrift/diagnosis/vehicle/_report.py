@@ -175,9 +175,10 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
             # to 250 Hz; benchmarks/validation/aliasing_floor.py). The level is then an upper
             # bound, and its interval reaches down to zero.
             lo = 0.0
-            src += (f"; the forces' 4th differences give {hf:.3g} N, {hf / max(sigma, 1e-300):.3g}x "
-                    f"this: they carry content up to the Nyquist frequency, which sampling without "
-                    f"an anti-aliasing filter folds into the low band, so this level is an upper bound")
+            src += (f"; the forces' 4th differences give {hf:.3g} N, "
+                    + (f"{hf / sigma:.3g}x this" if sigma > 0 else "far more")
+                    + ": they carry content up to the Nyquist frequency, which sampling without "
+                    "an anti-aliasing filter folds into the low band, so this level is an upper bound")
     else:
         from_lowband = False
         sigma, _, hi = _force_hf_noise(run)
