@@ -209,9 +209,10 @@ class BumpStop(NonlinearCause):
     sized_by_travel_profile = True
     #: a stop's stiffness rests on the 2-5 % of the samples at the travel's extremes, where an
     #: error of the travel (the model's, or a sensor's noise on a measured one) is largest beside
-    #: the penetration: on the 25 stops of the nonlinear sweep seed 20261261 (at e27915d) the
-    #: estimates scattered by 0.53 % RMS around the truth (up to 1.6 %), and the 0.5 % floor of
-    #: the other causes held the truth in 22 of 25. This floor is 1.96 x that scatter
+    #: the penetration: of the 25 stops sized in the nonlinear sweep seed 20261261 (at e27915d;
+    #: ``docs/validation/e27915d-bump-stop-tuning-seed20261261.md``) the 24 with an interval under
+    #: 10 % scattered by 0.53 % RMS around the truth (up to 1.6 %), and the 0.5 % floor of the other
+    #: causes held the truth in 22 of 25. This floor is 1.96 x that scatter
     resolution = 1.0e-2
 
     def __init__(self, axle: int, q: float):
