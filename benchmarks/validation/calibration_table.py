@@ -99,22 +99,10 @@ def main(argv=None):
                     help="caches of which only the nonlinear causes count (a sweep run with --no-simulation)")
     ap.add_argument("--out", help="write the rows here (JSON)")
     ap.add_argument("--commit", default=None, help="the commit that diagnosed the runs (recorded)")
-    ap.add_argument("--keep", default=None, metavar="JSON",
-                    help="an earlier table (this script's --out): its rows of the kinds the caches given here do "
-                         "not count are kept, with its sweeps and commit (a fresh nonlinear sweep replaces the "
-                         "nonlinear rows of a table whose standard sweeps it leaves as they were)")
     a = ap.parse_args(argv)
     kinds, params, sources = rows(a.caches, tuple(a.nonlinear))
     res = {"target_share": TARGET, "min_count": MIN_COUNT, "diagnosed_by": a.commit, "sweeps": sources,
            "kinds": kinds, "parameters": params}
-    if a.keep:
-        with open(a.keep) as fh:
-            old = json.load(fh)
-        kept = {k: v for k, v in old["kinds"].items() if k not in kinds}
-        res["kinds"] = dict(sorted({**kept, **kinds}.items()))
-        res["parameters"] = params or old.get("parameters", {})
-        res["kept"] = {"from": a.keep, "kinds": sorted(kept), "diagnosed_by": old.get("diagnosed_by"),
-                       "sweeps": old.get("sweeps", [])}
     print(markdown(res))
     if a.out:
         with open(a.out, "w") as fh:

@@ -571,7 +571,7 @@ def _reference_attitude_error(run, segments, ref_spans, model, n_ref, ref_rows, 
         dq = quat_multiply_np(quat_conjugate_np(q_ref[:-1]), q_ref[1:])
         w_ref = quat_log_np(dq) / dt
         good = np.isfinite(w_ref).all(1) & np.isfinite(w[:-1]).all(1)
-        series = GYRO_BIAS.inverse(w[:-1], GYRO_SCALE.forward(w_ref, model.scale))[good]
+        series = (w[:-1] - GYRO_SCALE.forward(w_ref, model.scale))[good]  # the additive errors
         label = "gyro minus reference-derived rate"
     return Comparison(model, sim_err=sim_err, gain=gain, plots=plots, allan_series=series, allan_label=label)
 

@@ -38,6 +38,7 @@ import scipy.signal
 import scipy.stats
 
 from ._detectors import _force_hf_noise
+from ._residuals import rms as _rms
 from ._nonlinear import AXLES, BumpStop, States, TyreLiftOff, catalogue, model_states, signatures, travel_response
 
 #: familywise false-alarm level of the adequacy test (Bonferroni over channels x terms)
@@ -148,10 +149,6 @@ def _tests(prob, p_ext, st, res1, terms):
         out[nm] = {"tests": _channel_test(y, N, S, fs, fc), "S": S, "N": N, "y": y, "fc": fc, "name": nm}
     return out
 
-
-def _rms(x):
-    x = np.asarray(x, dtype=float)
-    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
 
 def _on_axle(axle: int, f: np.ndarray) -> tuple:

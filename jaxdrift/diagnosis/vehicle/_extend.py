@@ -11,6 +11,7 @@ import scipy.signal
 from ...io._csvio import VehicleRun
 from ._causes import FORCE_CHANNELS
 from ._discretise import _discretise
+from ._residuals import rms as _rms
 
 #: pitch error at which the force-driven simulation is said to have drifted off (0.5 deg)
 DRIFT_THRESHOLD_RAD = math.radians(0.5)
@@ -217,10 +218,6 @@ def noise_pitch_dynamic_rms(p: dict, h: float) -> float:
     # variance of a discrete-time process: (1/pi) int_0^pi S(w) dw = 2 h int_0^{fs/2} S df
     return float(math.sqrt(2.0 * h * np.trapezoid(power, f)))
 
-
-def _rms(x) -> float:
-    x = np.asarray(x, dtype=float)
-    return float(np.sqrt(np.mean(x * x))) if x.size else 0.0
 
 
 def resimulate(pipe, model: dict, p_ext: dict, corr_ext: dict, sigma: float, sim_err: dict,
