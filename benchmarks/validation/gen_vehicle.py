@@ -330,6 +330,8 @@ def draw_effect(rng, cause: str, target: str | None, p: dict, duration: float | 
     if cause == "bump_stop":  # reached on 1-5 % of the samples, 3-10x the spring's stiffness
         return {"cause": cause, "parameter": target, "share": float(rng.uniform(0.01, 0.05)),
                 "ratio": float(rng.uniform(3.0, 10.0))}
+    if cause == "force_clipping":  # the amplifier's range reached on 0.2-2 % of the samples
+        return {"cause": cause, "channel": target, "share": _loguniform(rng, 2e-3, 2e-2)}
     if cause == "tyre_lift_off":  # the road scaled so the tyre leaves it on 1-5 % of the samples
         return {"cause": cause, "channel": target, "share": float(rng.uniform(0.01, 0.05))}
     raise ValueError(cause)
@@ -550,6 +552,11 @@ def generate(case: dict) -> tuple[dict, dict]:
         if e["cause"] == "force_noise":
             for ch in ("f1", "f2"):
                 meas[ch] = meas[ch] + e["value"] * nrng.standard_normal(n)
+    for e in case["effects"]:  # the amplifier's range, last in the chain: pinned at its top on ``share``
+        if e["cause"] == "force_clipping":
+            ch = e["channel"]
+            e["value"] = float(np.quantile(meas[ch], 1.0 - e["share"]))
+            meas[ch] = np.minimum(meas[ch], e["value"])
     for c in case["channels"]:
         meas[c] = true[c] + case["motion_noise"].get(c, 0.0) * nrng.standard_normal(n)
     cols = {"t": case["t0"] + tau, **meas}

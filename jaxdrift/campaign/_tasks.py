@@ -39,13 +39,13 @@ def load_spec(spec, model, model_given: bool):
 
 def _problem(spec, model: dict, model_given: bool):
     from ..diagnosis.vehicle import Problem as _Problem
-    from ..diagnosis.vehicle import ResidualPipeline
+    from ..diagnosis.vehicle import ResidualPipeline, read_signals
 
     key = (spec, tuple(sorted(model.items())))
     if key not in _PROBLEMS:
         if len(_PROBLEMS) > 256:
             _PROBLEMS.clear()
-        run = load_spec(spec, model, model_given)
+        run = read_signals(load_spec(spec, model, model_given))[0]  # as the single-run diagnosis reads it
         _PROBLEMS[key] = _Problem(ResidualPipeline(run), model)
     return _PROBLEMS[key]
 
@@ -237,10 +237,10 @@ def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict) ->
     _x64()
     from ..diagnosis.vehicle import SENSOR_KINDS, candidates as _candidates
     from ..diagnosis.vehicle import Problem as _Problem
-    from ..diagnosis.vehicle import ResidualPipeline
+    from ..diagnosis.vehicle import ResidualPipeline, read_signals
     from ..diagnosis.vehicle import select_causes as _select
 
-    run = load_spec(spec, model, model_given)
+    run = read_signals(load_spec(spec, model, model_given))[0]  # as the single-run diagnosis reads it
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, joint_model)
     sel = _select(prob, candidates=_candidates(pipe, SENSOR_KINDS))

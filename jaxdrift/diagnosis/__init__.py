@@ -27,11 +27,11 @@ __all__ = ['AbstractCause', 'ModelParameter', 'NoiseLevel', 'RateEffect', 'Senso
 
 def registered_causes() -> dict[str, tuple[AbstractCause, ...]]:
     """Every registered cause of both diagnoses, by domain: ``"vehicle"`` (the linear kinds, the
-    force noise, the nonlinear catalogue's terms and tyre lift-off per force channel) and
+    force noise, the nonlinear catalogue's terms and the causes read off each force channel) and
     ``"attitude"``. Each is an :class:`AbstractCause`; what it can do is its capability mixins."""
     from .attitude._causes import ATTITUDE_CAUSES
-    from .vehicle._causes import FORCE_CHANNELS, FORCE_NOISE, VEHICLE_CAUSES
-    from .vehicle._nonlinear import TyreLiftOff, catalogue
+    from .vehicle._causes import FORCE_NOISE, VEHICLE_CAUSES
+    from .vehicle._nonlinear import catalogue, signal_detectors
 
-    vehicle = (*VEHICLE_CAUSES, FORCE_NOISE, *catalogue(), *(TyreLiftOff(ch) for ch in FORCE_CHANNELS))
+    vehicle = (*VEHICLE_CAUSES, FORCE_NOISE, *catalogue(), *signal_detectors())
     return {"vehicle": vehicle, "attitude": tuple(ATTITUDE_CAUSES)}

@@ -12,8 +12,8 @@ never for a concrete class, and each concrete cause is final and owns its behavi
   generator simulates, the model the diagnosis corrects).
 - :class:`StateForce`: a force the linear model lacks, a function of its own states, per unit of
   the cause's size (damper asymmetry, progressive spring, bump stop, the bare state terms).
-- :class:`SignalDetector`: a cause read off a measured signal by a detector, not fitted (a tyre
-  that lifts off).
+- :class:`SignalDetector`: a cause read off a measured signal by a detector before anything is
+  fitted (a tyre that lifts off).
 - :class:`NoiseLevel`: a white-noise level, reported as an estimate or an upper bound.
 - :class:`RateEffect`: what a gyro does to the three body rates (the forward effect a generator
   applies, at its ``forward_stage``) and its inverse (the correction the diagnosis applies): the
@@ -85,7 +85,14 @@ class StateForce(abc.ABC):
 
 
 class SignalDetector(abc.ABC):
-    """Capability: read off a measured signal by a detector (``detect``), reported by ``finding``."""
+    """Capability: read off one measured channel (``channel``) by a detector (``detect``) before
+    anything is fitted, reported by ``finding``. What a detection changes, where it changes
+    anything: the channel's correction record (:meth:`corrected`, which the diagnosis applies to the
+    measured samples before the fit and reports with the extended model's corrections, so the
+    series output and durability undo it by the same record), and the extended model's nonlinear
+    terms (:meth:`model_terms`). The defaults change nothing: the cause is only reported."""
+
+    channel: str
 
     @abc.abstractmethod
     def detect(self, signal, sigma: float) -> dict | None:
@@ -94,6 +101,14 @@ class SignalDetector(abc.ABC):
     @abc.abstractmethod
     def finding(self, det: dict) -> dict:
         """The report finding of a detection."""
+
+    def corrected(self, c, det: dict):
+        """The channel's correction record ``c`` with the detection's inverse added."""
+        return c
+
+    def model_terms(self, det: dict) -> dict:
+        """What the detection adds to the extended model's nonlinear terms (JSON form)."""
+        return {}
 
 
 class NoiseLevel(abc.ABC):

@@ -202,6 +202,8 @@ def build_section_forces(t, forces, pitch, params: dict, params_ext: dict, corre
     t = np.asarray(t, float)
     dt = float((t[-1] - t[0]) / (t.size - 1))
     has_pitch = pitch is not None
+    # a clipped channel's bursts restored first, on the measured samples (the record's first step)
+    forces = np.stack([c.restore(t, np.asarray(forces)[:, i]) for i, (_, c) in enumerate(corrections.items())], axis=1)
     corr = corrections.as_rows()
     to_p = lambda d: jax.tree_util.tree_map(  # noqa: E731
         lambda v: jnp.asarray(v, jnp.float64), HalfCarParams.from_dict(d))

@@ -5,6 +5,10 @@ A force channel's correction (``docs/measured-data.md``)::
     read(t) = (measured(t + delay) - offset) * gain / (1 + drift * (t - t_mid)),   gain = 1 / scale
     read_1 = true_1 + leak_1 * true_2,   read_2 = true_2 + leak_2 * true_1
 
+Before all of it, a channel that clips at its range (``clip``: the pinned value of each side,
+``None`` where it does not clip) has its pinned samples restored from their flanks
+(:func:`unclip`): the one correction that reads the signal's shape, not a formula of its value.
+
 ``t_mid`` is the middle of the run (``(t[0] + t[-1]) / 2``), so a drift of the scale over the run
 leaves its mean scale in ``scale``. ``leak`` is the share of the other force channel read in this
 one (crosstalk); the true forces are the exact solution of the two lines (:func:`unmix`). A gyro channel's correction is ``true = (measured - bias) /
@@ -27,6 +31,49 @@ import numpy as np
 FORCE_CHANNELS = ("f1", "f2")
 _JSON_KEYS = ("offset", "scale", "delay")
 _OPTIONAL_KEYS = ("drift", "leak")
+#: the unpinned samples of each flank of a pinned burst the restoring cubic passes through
+UNCLIP_FLANK = 2
+#: degree of the restoring polynomial (a peak and its asymmetry)
+UNCLIP_DEGREE = 3
+
+
+def unclip(t, x, lo: float | None = None, hi: float | None = None) -> np.ndarray:
+    """The samples ``x`` (on times ``t``) with every burst pinned at ``hi`` (or ``lo``) restored: the
+    cubic through the :data:`UNCLIP_FLANK` unpinned samples on each side of the burst is evaluated
+    over it, and never taken below ``hi`` (above ``lo``): the true force went at least that far. A
+    burst at either end of the record has one flank and is left pinned (an extrapolation, not a
+    restoration). Returns a new array; without a level, ``x`` as floats.
+
+    What it restores depends on how smooth the force is at the sampling rate. Measured on forces
+    clipped at their 99 % and 95 % quantiles at 250 Hz (``tests/test_force_clipping.py``): of the
+    RMS the clipping took from the pinned samples, 5-15 % is left on two-tone signals up to 10 Hz,
+    35-45 % at 15 Hz, and 15-85 % on road-like noise low-passed at 10-40 Hz. It never leaves more
+    than the clipping did."""
+    x = np.asarray(x, dtype=float)
+    if lo is None and hi is None:
+        return x
+    t = np.asarray(t, dtype=float)
+    out = x.copy()
+    n = len(x)
+    for level, side in ((hi, 1.0), (lo, -1.0)):
+        if level is None:
+            continue
+        pinned = x == level
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], pinned.astype(np.int8), [0]])))
+        for a, b in zip(edges[::2], edges[1::2]):
+            k = UNCLIP_FLANK
+            if a == 0 or b == n:
+                continue
+            idx = np.concatenate([np.arange(max(0, a - k), a), np.arange(b, min(n, b + k))])
+            idx = idx[~pinned[idx]]
+            left, right = int(np.sum(idx < a)), int(np.sum(idx >= b))
+            if min(left, right) < 2:
+                continue
+            tc, ts = 0.5 * (t[a] + t[b - 1]), max(t[b] - t[a - 1], 1e-300)
+            c = np.polynomial.polynomial.polyfit((t[idx] - tc) / ts, x[idx], min(UNCLIP_DEGREE, len(idx) - 1))
+            est = np.polynomial.polynomial.polyval((t[a:b] - tc) / ts, c)
+            out[a:b] = np.maximum(est, level) if side > 0 else np.minimum(est, level)
+    return out
 
 
 def unmix(g1, g2, leak1: float, leak2: float):
@@ -50,6 +97,9 @@ class ForceCorrection:
     delay: float = 0.0
     drift: float = 0.0
     leak: float = 0.0
+    #: ``(lo, hi)``: the values at which the channel is pinned at the ends of its range (``None``
+    #: for a side it does not reach), or ``None``: it does not clip
+    clip: tuple[float | None, float | None] | None = None
 
     @property
     def scale(self) -> float:
@@ -66,6 +116,11 @@ class ForceCorrection:
         t = np.asarray(t, dtype=float)
         return 1.0 / (1.0 + self.drift * (t - 0.5 * (t[0] + t[-1])))
 
+    def restore(self, t, measured) -> np.ndarray:
+        """The measured samples with the bursts pinned at the channel's range restored
+        (:func:`unclip`); unchanged (as floats) where it does not clip."""
+        return unclip(t, measured, *(self.clip or (None, None)))
+
     def finish(self, shifted: np.ndarray, t=None) -> np.ndarray:
         """The channel's read force (the true one where nothing leaks in) from the measured samples
         already shifted by ``delay`` (``t``: their times, needed only with a drift)."""
@@ -79,7 +134,7 @@ class ForceCorrection:
         if delay_method != "linear":
             raise ValueError(f"delay_method must be 'linear' here, got {delay_method!r}")
         t = np.asarray(t, dtype=float)
-        f = np.asarray(measured, dtype=float)
+        f = self.restore(t, measured)
         if self.delay:
             f = np.interp(t + self.delay, t, f)
         return self.finish(f, t)
@@ -89,18 +144,25 @@ class ForceCorrection:
         for k in _OPTIONAL_KEYS:
             if getattr(self, k) != 0.0:
                 out[k] = float(getattr(self, k))
+        if self.clip is not None:
+            out["clip"] = [None if v is None else float(v) for v in self.clip]
         return out
 
     @classmethod
     def from_json(cls, d: dict | None) -> "ForceCorrection":
         d = d or {}
-        unknown = set(d) - set(_JSON_KEYS) - set(_OPTIONAL_KEYS)
+        unknown = set(d) - set(_JSON_KEYS) - set(_OPTIONAL_KEYS) - {"clip"}
         if unknown:
             raise ValueError(f"unknown correction keys {sorted(unknown)}; expected {list(_JSON_KEYS)} "
-                             f"and optionally {list(_OPTIONAL_KEYS)}")
+                             f"and optionally {[*_OPTIONAL_KEYS, 'clip']}")
+        clip = d.get("clip")
+        if clip is not None:
+            if len(clip) != 2:
+                raise ValueError(f"a correction's clip is [low, high] (null for a side it does not reach), got {clip!r}")
+            clip = tuple(None if v is None else float(v) for v in clip)
         return cls(offset=float(d.get("offset", 0.0)), gain=1.0 / float(d.get("scale", 1.0)),
                    delay=float(d.get("delay", 0.0)), drift=float(d.get("drift", 0.0)),
-                   leak=float(d.get("leak", 0.0)))
+                   leak=float(d.get("leak", 0.0)), clip=clip)
 
 
 @dataclass(frozen=True)
@@ -122,6 +184,10 @@ class Corrections:
         """A copy with channel ``ch``'s fields changed (the record itself never changes)."""
         return replace(self, **{ch: replace(self[ch], **changes)})
 
+    def with_record(self, ch: str, c: ForceCorrection) -> "Corrections":
+        """A copy with channel ``ch``'s record replaced by ``c``."""
+        return replace(self, **{ch: c})
+
     def only_delay(self) -> "Corrections":
         """The same delays, nothing else (the shifted measured forces)."""
         return Corrections(**{ch: ForceCorrection(delay=c.delay) for ch, c in self.items()})
@@ -135,6 +201,10 @@ class Corrections:
         """The true forces from the channels' read ones (:func:`unmix`; unchanged without crosstalk)."""
         f1, f2 = unmix(read["f1"], read["f2"], *self.leaks)
         return {"f1": f1, "f2": f2}
+
+    def restore(self, t, forces: dict) -> dict[str, np.ndarray]:
+        """The measured forces with each channel's pinned bursts restored (:meth:`ForceCorrection.restore`)."""
+        return {ch: c.restore(t, forces[ch]) for ch, c in self.items()}
 
     def apply(self, t, forces: dict, delay_method: str = "linear") -> dict[str, np.ndarray]:
         return self.unmix({ch: c.apply(t, forces[ch], delay_method) for ch, c in self.items()})

@@ -83,6 +83,10 @@ class VehicleRun:
     def __getitem__(self, name: str) -> np.ndarray:
         return self.channels[name]
 
+    def with_channels(self, changed: dict) -> "VehicleRun":
+        """A copy with the channels of ``changed`` replaced (the run itself never changes)."""
+        return dataclasses.replace(self, channels={**self.channels, **changed})
+
 
 class AttitudeRun(VehicleRun):
     """A validated attitude run (same fields; channels ``wx, wy, wz``, ``qw..qz``, ``a1x..``).

@@ -104,9 +104,11 @@ def vehicle_preview(run, model: dict, report: dict, bins: int = BINS) -> dict:
         if not np.allclose(cols[f"{ch}_corrected"], cols[ch]):
             traces[f"{ch}_corrected"] = _trace(t, cols[f"{ch}_corrected"], "N", f"{ch} corrected", ch, bins)
     ext = report.get("extended_model") or {}
-    pipe = ResidualPipeline(run)
+    corr = Corrections.from_json(ext.get("corrections"))
+    # the forces as the diagnosis compared them (a clipped channel's bursts restored)
+    pipe = ResidualPipeline(run.with_channels(corr.restore(run.t, {ch: run[ch] for ch in ("f1", "f2")})))
     r0 = pipe.residuals(model, NO_CORRECTION).channels
-    r1 = pipe.residuals(ext.get("parameters", model), Corrections.from_json(ext.get("corrections"))).channels
+    r1 = pipe.residuals(ext.get("parameters", model), corr).channels
     units = {"moment": "N m", "heave": "N"}
     offset = {"moment": 1, "heave": 1}
     for nm, x0 in r0.items():

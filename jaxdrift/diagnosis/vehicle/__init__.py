@@ -34,6 +34,7 @@ from ._causes import (
     _practical as practical_size,
     _theta_bounds as theta_bounds,
 )
+from ._detectors import read_signals as read_signals
 from ._extend import DRIFT_THRESHOLD_RAD as DRIFT_THRESHOLD_RAD
 from ._nonlinear import nonlinear_cause_names as nonlinear_cause_names
 from ._pipeline import diagnose_vehicle_run as diagnose_vehicle_run
@@ -46,7 +47,7 @@ __all__ = ['ALPHA', 'Cause', 'DRIFT_THRESHOLD_RAD', 'FORCE_CHANNELS', 'FORCE_DEL
            'FORCE_OFFSET', 'FORCE_SCALE', 'PARAMETER_ERROR', 'Problem', 'ResidualPipeline', 'SCHEMA', 'SENSOR_KINDS',
            'VEHICLE_CAUSES', 'apply_causes', 'candidates', 'cause_names', 'clip_theta', 'diagnose_vehicle_run',
            'finding_for', 'kind_named', 'nonlinear_cause_names', 'practical_size', 'projected_share',
-           'residual_gain', 'select_causes', 'theta_bounds']
+           'read_signals', 'residual_gain', 'select_causes', 'theta_bounds']
 
 
 def cause_names() -> tuple[str, ...]:

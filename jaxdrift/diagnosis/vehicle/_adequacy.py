@@ -23,8 +23,9 @@ confirmed out of sample on alternate blocks of the record, ``_held_out_check``),
 ``model_form`` finding with the channel, band, state and size. The confirmed causes' forces
 (``extra``) let the linear causes be chosen again on a model that has them
 (``_pipeline.select_with_form``). Where a catalogue cause of the largest size engineers meet would
-not pass, the notes say the run could not show it and name the channel that would. Tyre lift-off is
-read from the forces (``_nonlinear.TyreLiftOff``).
+not pass, the notes say the run could not show it and name the channel that would. Causes read off
+the forces themselves (tyre lift-off) are not this test's: the diagnosis reads them before the fit
+(``_detectors.read_signals``).
 """
 
 from __future__ import annotations
@@ -37,9 +38,8 @@ import scipy.linalg
 import scipy.signal
 import scipy.stats
 
-from ._detectors import _force_hf_noise
 from ._residuals import rms as _rms
-from ._nonlinear import AXLES, BumpStop, States, TyreLiftOff, catalogue, model_states, signatures, travel_response
+from ._nonlinear import AXLES, BumpStop, States, catalogue, model_states, signatures, travel_response
 
 #: familywise false-alarm level of the adequacy test (Bonferroni over channels x terms)
 ALPHA = 1e-3
@@ -174,18 +174,10 @@ def _explained(t: float, th: float, dof: float, col: np.ndarray, scale: float, m
 
 
 def assess_model_form(prob, p_ext: dict, corr_ext: dict, res1, dynamic: bool) -> dict:
-    """Findings (nonlinear causes, ``model_form``, tyre lift-off), notes ('could not show') and the
+    """Findings (nonlinear causes, ``model_form``), notes ('could not show') and the
     extended model's nonlinear terms, for the fitted model ``p_ext``/``corr_ext`` and its residuals
     ``res1``."""
-    run = prob.pipe.run
     findings, notes, correction = [], [], {}
-    sigma = _force_hf_noise(run)[0]
-    for ch in ("f1", "f2"):
-        lift = TyreLiftOff(ch)
-        det = lift.detect(run[ch], sigma)
-        if det is not None:
-            findings.append({**lift.finding(det), "confirmed": True})
-            correction["lift_off"] = True
     names = [nm for nm in prob.names if nm != "static"]
     if not dynamic or not names:
         notes.append("Could not show: damper_asymmetry, progressive_spring, bump_stop (no pitch, heave or "

@@ -1,6 +1,7 @@
-"""Noise detectors on the measured signals: white force noise from high-order differences, white
-sensor noise on the measured motion from the residual's top band, and the noise that printing a
-value with a limited number of digits adds."""
+"""Detectors on the measured signals: the causes read off the forces before anything is fitted
+(:func:`read_signals`), white force noise from high-order differences, white sensor noise on the
+measured motion from the residual's top band, and the noise that printing a value with a limited
+number of digits adds."""
 
 from __future__ import annotations
 
@@ -11,7 +12,9 @@ import scipy.optimize
 import scipy.signal
 
 from .._diffnoise import robust_diff_sigma
+from ...io._corrections import NO_CORRECTION, Corrections
 from ._causes import FORCE_CHANNELS
+from ._nonlinear import signal_detectors
 
 #: below this force-noise level [N] no noise is reported (about 1e-4 of the seed's static load;
 #: the low-band estimate of a noise-free run stays below about 0.2 N)
@@ -27,6 +30,32 @@ def _hf_noise_sigma(f: np.ndarray) -> float:
     """Robust white-noise level from the 4th difference; an upper bound when the signal itself
     has content near the Nyquist frequency."""
     return _diff_sigma(f, 4)
+
+
+def read_signals(run) -> tuple[object, tuple]:
+    """The causes read off the measured forces before anything is fitted (the registry
+    ``_nonlinear.signal_detectors``, each detector on its channel of the run as given, with the
+    forces' top-band noise level). Returns the run with every detection's inverse applied to the
+    samples of its channel (the run itself where none changes anything) and the ``(detector,
+    detection)`` pairs found, in the registry's order."""
+    sigma = _force_hf_noise(run)[0]
+    found = []
+    for d in signal_detectors():
+        det = d.detect(run[d.channel], sigma) if run.has(d.channel) else None
+        if det is not None:
+            found.append((d, det))
+    found = tuple(found)
+    corr = with_detections(NO_CORRECTION, found)
+    if corr == NO_CORRECTION:
+        return run, found
+    return run.with_channels(corr.restore(run.t, {ch: run[ch] for ch in FORCE_CHANNELS})), found
+
+
+def with_detections(corr: Corrections, found) -> Corrections:
+    """``corr`` with the inverse of every detection of :func:`read_signals` added to its channel."""
+    for d, det in found:
+        corr = corr.with_record(d.channel, d.corrected(corr[d.channel], det))
+    return corr
 
 
 def _force_hf_noise(run) -> tuple[float, float, float]:

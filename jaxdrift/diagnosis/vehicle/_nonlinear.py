@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 
+from ...io._corrections import FORCE_CHANNELS
 from .._cause import AbstractCause, SignalDetector, StateForce
 from .._diffnoise import mad_sigma
 from ._discretise import _poly_coeffs
@@ -309,14 +310,20 @@ def catalogue() -> list[NonlinearCause]:
     return out
 
 
+def signal_detectors() -> list[SignalDetector]:
+    """The causes read off the measured forces before anything is fitted, one instance per force
+    channel, in the order the report lists them."""
+    return [TyreLiftOff(ch) for ch in FORCE_CHANNELS]
+
+
 def nonlinear_cause_names() -> tuple[str, ...]:
-    """The nonlinear causes the diagnosis can name: the nameable ones of :func:`catalogue` and tyre
-    lift-off (read from the forces)."""
+    """The nonlinear causes the diagnosis can name: the nameable ones of :func:`catalogue` and those
+    read off the forces (:func:`signal_detectors`)."""
     names = []
-    for c in catalogue():
-        if c.nameable and c.name not in names:
+    for c in (*catalogue(), *signal_detectors()):
+        if getattr(c, "nameable", True) and c.name not in names:
             names.append(c.name)
-    return (*names, TyreLiftOff.name)
+    return tuple(names)
 
 
 # ----------------------------------------------------------------------------- states, signatures
@@ -463,3 +470,6 @@ class TyreLiftOff(AbstractCause, SignalDetector):
               f"law there")
         return {"cause": self.name, "channel": ch, "estimate": float(det["share"]), "unit": self.unit,
                 "interval": [float(x) for x in det["interval"]], "evidence": ev + "."}
+
+    def model_terms(self, det: dict) -> dict:
+        return {"lift_off": True}

@@ -7,7 +7,7 @@ from ...io._timebase import run_block
 from ._adequacy import assess_model_form
 from ...io._corrections import NO_CORRECTION
 from ._causes import FORCE_NOISE, _apply
-from ._detectors import NOISE_MIN_N
+from ._detectors import NOISE_MIN_N, read_signals, with_detections
 from ._confirm import confirm_by_resimulation, confirm_corrections, unconfirmed_findings
 from ._extend import resimulate
 from ._plots import write_vehicle_plots
@@ -75,6 +75,9 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     (the slowest part; tests of the cause logic may skip it).
     """
     model = dict(DEFAULT_MODEL if model is None else model)
+    # the causes read off the forces themselves lead (each detection's inverse applied to the
+    # measured samples before anything is fitted, and reported with the extended model's corrections)
+    run, detected = read_signals(run)
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
     pipe = prob.pipe  # with the channels it compares band-limited
@@ -137,7 +140,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         sigma, 0.0, b, "upper_bound", (
             f"At most {b:.3g} N, the comparison's own floor: {src}; a force noise below "
             f"{NOISE_CONFIRMED_MIN_N:g} N cannot be told from the comparison's own error."))
-    findings = form["findings"] + findings
+    findings = [{**d.finding(det), "confirmed": True} for d, det in detected] + form["findings"] + findings
     findings = _stand_ins(findings, form.get("unseen") or [])
     # logger faults (found by the reader before anything was fitted; the run is their sound part)
     # lead the list: every other finding holds for the sound part only
@@ -158,17 +161,18 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
     gain = residual_gain(prob, res0, res1, bool(fit.causes) or form["extra"] is not None, corrections, dynamic)
     sim_err = enforced_terms(prob_lin, model, res0)
+    nonlinear = {k: v for d, det in detected for k, v in d.model_terms(det).items()} | form["correction"]
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
-        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, form["correction"])
+        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, nonlinear)
 
     report = {
         "schema": SCHEMA,
         "kind": "vehicle",
         "simulation_error": sim_err,
         "findings": findings,
-        "extended_model": {"parameters": params_ext, "corrections": corrections.to_json(),
-                           **({"nonlinear": form["correction"]} if form["correction"] else {})},
+        "extended_model": {"parameters": params_ext, "corrections": with_detections(corrections, detected).to_json(),
+                           **({"nonlinear": nonlinear} if nonlinear else {})},
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
                 "duration_s": float(run.t[-1] - run.t[0]),
