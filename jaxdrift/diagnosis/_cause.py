@@ -90,7 +90,24 @@ class SignalDetector(abc.ABC):
     anything: the channel's correction record (:meth:`corrected`, which the diagnosis applies to the
     measured samples before the fit and reports with the extended model's corrections, so the
     series output and durability undo it by the same record), and the extended model's nonlinear
-    terms (:meth:`model_terms`). The defaults change nothing: the cause is only reported."""
+    terms (:meth:`model_terms`). The defaults change nothing: the cause is only reported.
+
+    Adding a cause read off a force channel (the vehicle's tyre lift-off and force clipping):
+
+    1. Write one ``@final`` class in ``diagnosis/vehicle/_nonlinear.py``, an
+       :class:`AbstractCause` with this capability: ``name``, ``unit``, ``__init__(channel)``.
+    2. :meth:`detect` on the channel's measured samples (``sigma``: the forces' top-band noise
+       level), returning what it found or ``None``; :meth:`finding` the report's finding of it
+       (``cause``, ``channel``, ``estimate``, ``unit``, ``interval`` or ``None`` for a value read
+       exactly, ``evidence``).
+    3. Its inverse, where there is one: :meth:`corrected` (a field of the channel's
+       :class:`~jaxdrift.io._corrections.ForceCorrection`, so the diagnosis, the series output,
+       durability and the campaign undo it by one record) or :meth:`model_terms`.
+    4. Its forward effect for generators (``forward``), and the independent generator
+       (``benchmarks/validation/gen_vehicle.py``) taught the effect in its own code.
+    5. Register an instance per channel in ``_nonlinear.signal_detectors`` and add a case to
+       ``tests/test_cause_contract.py``.
+    """
 
     channel: str
 
