@@ -110,6 +110,9 @@ class SignalDetector(abc.ABC):
     """
 
     channel: str
+    #: its inverse restores samples the sensor lost, approximately: what the restoration misses
+    #: stays in the residual as a force error, so the run's force-noise level is an upper bound
+    restores: ClassVar[bool] = False
 
     @abc.abstractmethod
     def detect(self, signal, sigma: float) -> dict | None:

@@ -111,6 +111,11 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     # chosen (a stop's force of 7 x the spring, refitted by 0.04 %, left a residual that read as
     # 10 x the true noise)
     noise = noise_level(prob, sel, corr_ext, p_ext, None if form["extra"] is None else prob.weighted(res1))
+    restored = [d.channel for d, _ in detected if d.restores]
+    if restored:  # what a restoration of lost samples missed is a force error the residual keeps
+        noise = {**noise, "kind": "upper_bound", "lo": 0.0, "source": noise["source"] + (
+            f"; what the restoration of {' and '.join(restored)}'s lost samples missed counts in it, so "
+            f"the level is an upper bound")}
     sigma = noise["sigma"]
     notes = list(noise["notes"])
 
