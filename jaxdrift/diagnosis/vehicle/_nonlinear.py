@@ -19,12 +19,13 @@ changes the forces the wheels pass on.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import final
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
-from ...io._corrections import FORCE_CHANNELS
+from ...io._corrections import FORCE_CHANNELS, unclip
 from .._cause import AbstractCause, SignalDetector, StateForce
 from .._diffnoise import mad_sigma
 from ._discretise import _poly_coeffs
@@ -313,7 +314,7 @@ def catalogue() -> list[NonlinearCause]:
 def signal_detectors() -> list[SignalDetector]:
     """The causes read off the measured forces before anything is fitted, one instance per force
     channel, in the order the report lists them."""
-    return [TyreLiftOff(ch) for ch in FORCE_CHANNELS]
+    return [*(ForceClipping(ch) for ch in FORCE_CHANNELS), *(TyreLiftOff(ch) for ch in FORCE_CHANNELS)]
 
 
 def nonlinear_cause_names() -> tuple[str, ...]:
@@ -473,3 +474,71 @@ class TyreLiftOff(AbstractCause, SignalDetector):
 
     def model_terms(self, det: dict) -> dict:
         return {"lift_off": True}
+
+
+@final
+class ForceClipping(AbstractCause, SignalDetector):
+    """A force channel saturating at its range: the amplifier or the ADC at the end of its range
+    reads its extreme value wherever the force goes beyond it, and the peaks are lost. The forward
+    effect (:meth:`forward`, last in the sensor's chain): ``min(f, range)``. The samples themselves
+    show it: a channel that sits at exactly its largest (or smallest) value on ``MIN_SAMPLES``
+    samples or more, in bursts of two or more in a row, is pinned there; a force never repeats
+    its extreme otherwise, not even at a logger's resolution. A smallest value of exactly 0 is a
+    tyre in the air (:class:`TyreLiftOff`), not a range.
+
+    The estimate is the range (the pinned value, exact to the logger's resolution: no interval,
+    and no part in the joint level of the report's intervals). The inverse (:meth:`corrected`) is the channel's correction record with ``clip``
+    set: the pinned bursts restored from the samples around them
+    (:func:`jaxdrift.io._corrections.unclip`) before anything is fitted, and by the same record
+    in the series output and durability. What a burst lost beyond the restoration stays unknown;
+    the evidence says how much the restoration added."""
+
+    name, unit = "force_clipping", "N"
+    MIN_SAMPLES = 5
+    restores = True
+
+    def __init__(self, channel: str):
+        self.channel = channel
+
+    def forward(self, measured: dict, target: str, value: float, read=None) -> dict:
+        """The measured forces with channel ``target`` pinned at ``value`` from above (new arrays)."""
+        return {**measured, target: np.minimum(measured[target], value)}
+
+    def detect(self, f: np.ndarray, sigma: float) -> dict | None:
+        f = np.asarray(f, dtype=float)
+        fin = f[np.isfinite(f)]
+        if fin.size < 100:
+            return None
+        levels, bursts = {}, 0
+        for side, v in (("hi", float(fin.max())), ("lo", float(fin.min()))):
+            if side == "lo" and v == 0.0:
+                continue  # a tyre in the air, not a range
+            at = f == v
+            edges = np.flatnonzero(np.diff(np.concatenate([[0], at.astype(np.int8), [0]])))
+            runs = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+            if sum(b - a for a, b in runs) >= self.MIN_SAMPLES:
+                levels[side] = v
+                bursts += len(runs)
+        if not levels:
+            return None
+        lo, hi = levels.get("lo"), levels.get("hi")
+        at = np.isin(f, list(levels.values()))
+        beyond = np.abs(unclip(np.arange(f.size), f, lo, hi) - f)  # on the uniform grid of the samples
+        return {"lo": lo, "hi": hi, "samples": int(at.sum()), "bursts": bursts, "share": float(at.mean()),
+                "beyond": float(beyond.max())}
+
+    def corrected(self, c, det: dict):
+        return replace(c, clip=(det["lo"], det["hi"]))
+
+    def finding(self, det: dict) -> dict:
+        side = "hi" if det["hi"] is not None else "lo"
+        level = det[side]
+        ends = " and ".join(f"{'its top' if s == 'hi' else 'its bottom'} at {det[s]:.6g} N"
+                            for s in ("hi", "lo") if det[s] is not None)
+        ev = (f"{self.channel} sits at exactly {ends} on {det['samples']} samples ({100 * det['share']:.3g} % of the "
+              f"record) in {det['bursts']} bursts of two or more: the channel clips at its range and loses its "
+              f"peaks. The pinned bursts are restored from the samples around them before anything is fitted (the "
+              f"extended model's correction 'clip'), by up to {det['beyond']:.3g} N beyond the range; what a burst "
+              f"lost beyond that restoration is unknown.")
+        return {"cause": self.name, "channel": self.channel, "estimate": float(level), "unit": self.unit,
+                "interval": None, "samples": det["samples"], "evidence": ev}
