@@ -117,7 +117,7 @@ def test_interval_level_counts_every_finding_with_an_interval():
     findings = joint_intervals(findings)
     assert [f.get("interval_level", {}).get("findings") for f in findings] == [3, 3, 3, None]
     src = inspect.getsource(_pipeline)
-    assert src.index('findings = form["findings"] + findings') < src.index("joint_intervals(findings)")
+    assert src.index('+ form["findings"] + findings') < src.index("joint_intervals(findings)")
     doc = (ROOT / "docs" / "reference" / "report.md").read_text()
     assert "the nonlinear suspension findings and unconfirmed findings included" in doc.replace("\n", " ")
 
