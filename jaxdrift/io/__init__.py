@@ -22,6 +22,11 @@ from ._csvio import (
     read_model as read_model,
     write_vehicle_run as write_vehicle_run,
 )
+from ._corrections import (
+    Corrections as Corrections,
+    ForceCorrection as ForceCorrection,
+    unclip as unclip,
+)
 from ._model import DEFAULT_MODEL_LABEL as DEFAULT_MODEL_LABEL
 from ._runs import AttitudeRun as AttitudeRun, load_run as load_run
 from ._outputs import (
@@ -42,8 +47,8 @@ from ._export import export_recorded_csv as export_recorded_csv
 from ._logs import list_topics as list_topics, read_log as read_log
 from ._timebase import GAP_FACTOR as GAP_FACTOR
 
-__all__ = ['AttitudeRun', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'GAP_FACTOR', 'InputError', 'MIN_DURATION_S',
-           'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
+__all__ = ['AttitudeRun', 'Corrections', 'DEFAULT_MODEL', 'DEFAULT_MODEL_LABEL', 'GAP_FACTOR', 'InputError', 'MIN_DURATION_S',
+           'ForceCorrection', 'MIN_SAMPLES', 'MODEL_KEYS', 'VEHICLE_OPTIONAL', 'VEHICLE_REQUIRED', 'VehicleRun', 'atomic_dir', 'atomic_path',
            'attitude_segments', 'check_outputs', 'export_recorded_csv', 'list_topics', 'load_run', 'provenance', 'read_log',
            'read_attitude_run', 'read_header', 'read_model', 'read_sensors', 'read_vehicle_run',
-           'write_json', 'write_report', 'check_report_finite', 'write_vehicle_run']
+           'unclip', 'write_json', 'write_report', 'check_report_finite', 'write_vehicle_run']
