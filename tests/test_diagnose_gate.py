@@ -50,7 +50,8 @@ def test_a_finding_the_resimulation_does_not_confirm_stays_a_finding():
     with ``confirmed: false``, its estimate and interval from the fit that selected it, and the
     band-limited pitch errors in its evidence."""
     from jaxdrift.diagnosis.vehicle._causes import Cause
-    from jaxdrift.diagnosis.vehicle._confirm import confirm_by_resimulation, unconfirmed_findings
+    from jaxdrift.diagnosis.vehicle._confirm import confirm_by_resimulation
+    from jaxdrift.diagnosis.vehicle._report import unconfirmed_findings
     from jaxdrift.diagnosis.vehicle._problem import _gauss_newton
     from jaxdrift.diagnosis.vehicle._select import Selection
 

@@ -240,7 +240,7 @@ def test_linear_stand_in_for_an_unseen_stop_says_so():
     the other axle, and a cause the run could show, do not. (On this project's generated runs a
     rear stop of 3-8x seen in pitch or pitch rate is found as the stop itself; the stand-in was
     met on an independent team's runs.)"""
-    from jaxdrift.diagnosis.vehicle._pipeline import _stand_ins
+    from jaxdrift.diagnosis.vehicle._report import _stand_ins
 
     ev = "a rate"
     given = [{"cause": "parameter_error", "parameter": "k4", "estimate": 1.19, "evidence": ev},

@@ -108,7 +108,7 @@ def test_interval_level_counts_every_finding_with_an_interval():
     import inspect
 
     from jaxdrift.diagnosis._intervals import joint_intervals
-    from jaxdrift.diagnosis.vehicle import _pipeline
+    from jaxdrift.diagnosis.vehicle import _report as _pipeline  # the report step assembles the findings
 
     findings = [{"cause": "bump_stop", "estimate": 8e5, "interval": [7e5, 9e5]},
                 {"cause": "force_offset", "estimate": 50.0, "interval": [48.0, 52.0]},

@@ -24,7 +24,6 @@ import numpy as np
 
 from ._causes import _apply
 from ._problem import Fit, _gauss_newton, _Problem
-from ._report import cause_findings
 from ._residuals import kept as _kept
 from ._residuals import rms as _rms
 from ._residuals import telling_channel as _telling_channel
@@ -214,37 +213,13 @@ def confirm_by_resimulation(prob: _Problem, sel: Selection, log=None) -> tuple[S
     return _reselected(prob, sel, fit), dropped
 
 
-def unconfirmed_findings(prob: _Problem, sel0: Selection, model: dict, sigma: float,
-                         held_out: list, resim_out: list) -> list[dict]:
-    """The findings of the causes a check did not confirm (the halves check of
-    :func:`confirm_corrections`, the re-simulation of :func:`confirm_by_resimulation`). Each keeps
-    its estimate and interval from the fit that selected it (all selected causes present), is
-    marked ``"confirmed": false`` and says why in its evidence; the extended model leaves it out.
-    No finding is ever moved to a note: the check can be wrong where the cause is right."""
-    reasons = {}
-    for c, est, imp in held_out:
-        (a1, b1), (a2, b2) = imp["halves"]
-        t1, t2 = imp["halves_t"]
-        reasons[c] = (f"not confirmed, left out of the extended model: corrected, the {imp['channel']} "
-                      f"residual's RMS goes {imp['without']:.4g} -> {imp['with']:.4g} on the whole run, "
-                      f"{a1:.4g} -> {b1:.4g} on the first half and {a2:.4g} -> {b2:.4g} on the second "
-                      f"(drops of {imp['whole_t']:.2g}, {t1:.2g} and {t2:.2g} standard errors): clearly higher "
-                      f"on the whole run or on a half")
-    for c, est, ch, before, after, without in resim_out:
-        what = {"beta": "pitch", "z3": "heave", "s1": "front spring travel", "s2": "rear spring travel"}[ch]
-        unit = "rad" if ch == "beta" else "m"
-        reasons[c] = (f"not confirmed, left out of the extended model: re-simulated force-driven in windows "
-                      f"restarted from the measured motion, the {what} error is {after:.4g} {unit} with it and "
-                      f"{without:.4g} {unit} without it ({before:.4g} {unit} for the model as given)")
-    if not reasons:
-        return []
-    fit0 = sel0.fit
-    p0, corr0 = _apply(model, fit0.causes, fit0.theta)
-    res_all = prob.pipe.residuals(p0, corr0)
-    out = cause_findings(prob, sel0, model, res_all, sigma, only=set(reasons))
-    for f in out:
-        c = next(c for c in reasons if c.kind.name == f["cause"]
-                 and c.target in (f.get("channel"), f.get("parameter"), "both"))
-        f["confirmed"] = False
-        f["evidence"] = f["evidence"].rstrip(".") + "; " + reasons[c] + "."
-    return out
+def confirm(prob: _Problem, sel0: Selection, with_simulation: bool, log=None) -> tuple[Selection, list, list]:
+    """Both checks of the selected corrections, in order: the halves check
+    (:func:`confirm_corrections`), then with ``with_simulation`` the re-simulation
+    (:func:`confirm_by_resimulation`). Returns the selection they keep, the causes the halves check
+    held out and those the re-simulation dropped."""
+    sel, held_out = confirm_corrections(prob, sel0, log)
+    resim_out = []
+    if with_simulation:
+        sel, resim_out = confirm_by_resimulation(prob, sel, log)
+    return sel, held_out, resim_out

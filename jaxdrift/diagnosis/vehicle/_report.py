@@ -8,6 +8,8 @@ import numpy as np
 import scipy.stats
 
 from ...io._corrections import NO_CORRECTION, Corrections
+from ...io._csvio import MODEL_KEYS
+from ...io._timebase import run_block
 from ._causes import FORCE_CHANNELS, FORCE_NOISE, FORCE_OFFSET, PARAMETER_ERROR, Cause, _apply, _finding_for, _practical
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_white,
                          lowband_cutoff, written_digits)
@@ -352,4 +354,166 @@ def enforced_terms(prob: "_Problem", model: dict, res0: "Residuals") -> dict:
             lam_b = _kept(prob, res0, nm)
             out[key + "_band_limited"] = {"rms": _rms(lam_b), "max_abs": float(np.max(np.abs(lam_b))),
                                           "band_hz": [0.0, float(pipe.band[nm][0])]}
+    return out
+
+
+
+def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
+                         held_out: list, resim_out: list) -> list[dict]:
+    """The findings of the causes a check did not confirm (the halves check of
+    ``_confirm.confirm_corrections``, the re-simulation of ``_confirm.confirm_by_resimulation``). Each keeps
+    its estimate and interval from the fit that selected it (all selected causes present), is
+    marked ``"confirmed": false`` and says why in its evidence; the extended model leaves it out.
+    No finding is ever moved to a note: the check can be wrong where the cause is right."""
+    reasons = {}
+    for c, est, imp in held_out:
+        (a1, b1), (a2, b2) = imp["halves"]
+        t1, t2 = imp["halves_t"]
+        reasons[c] = (f"not confirmed, left out of the extended model: corrected, the {imp['channel']} "
+                      f"residual's RMS goes {imp['without']:.4g} -> {imp['with']:.4g} on the whole run, "
+                      f"{a1:.4g} -> {b1:.4g} on the first half and {a2:.4g} -> {b2:.4g} on the second "
+                      f"(drops of {imp['whole_t']:.2g}, {t1:.2g} and {t2:.2g} standard errors): clearly higher "
+                      f"on the whole run or on a half")
+    for c, est, ch, before, after, without in resim_out:
+        what = {"beta": "pitch", "z3": "heave", "s1": "front spring travel", "s2": "rear spring travel"}[ch]
+        unit = "rad" if ch == "beta" else "m"
+        reasons[c] = (f"not confirmed, left out of the extended model: re-simulated force-driven in windows "
+                      f"restarted from the measured motion, the {what} error is {after:.4g} {unit} with it and "
+                      f"{without:.4g} {unit} without it ({before:.4g} {unit} for the model as given)")
+    if not reasons:
+        return []
+    fit0 = sel0.fit
+    p0, corr0 = _apply(model, fit0.causes, fit0.theta)
+    res_all = prob.pipe.residuals(p0, corr0)
+    out = cause_findings(prob, sel0, model, res_all, sigma, only=set(reasons))
+    for f in out:
+        c = next(c for c in reasons if c.kind.name == f["cause"]
+                 and c.target in (f.get("channel"), f.get("parameter"), "both"))
+        f["confirmed"] = False
+        f["evidence"] = f["evidence"].rstrip(".") + "; " + reasons[c] + "."
+    return out
+
+
+def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel, sel0, held_out: list,
+                   resim_out: list, form: dict, detected, p_ext: dict, corr_ext: Corrections, res0: "Residuals",
+                   res1: "Residuals", dynamic: bool, with_simulation: bool, plots_dir=None) -> dict:
+    """The report of a diagnosed run (``docs/measured-data.md``), from the steps' results: the
+    causes read off the forces (``detected``), the selection before (``sel0``) and after (``sel``)
+    the checks with the causes they left out, the adequacy test (``form``), the extended model
+    (``p_ext``, ``corr_ext``) and the residuals of the model as given and of the extended one. The
+    force noise, every finding, the notes, the extended model, the gain, its re-simulation and the
+    figures (with ``plots_dir``)."""
+    from .._intervals import joint_intervals
+    from ._detectors import with_detections
+    from ._extend import resimulate
+    from ._plots import write_vehicle_plots
+
+    pipe, lin, fit = prob.pipe, prob_lin.pipe, sel.fit
+    # the force noise from what the extended model leaves: where it carries a nonlinear force, that
+    # force as the adequacy test refitted it last, not as it stood when the linear causes were
+    # chosen (a stop's force of 7 x the spring, refitted by 0.04 %, left a residual that read as
+    # 10 x the true noise)
+    noise = noise_level(prob, sel, corr_ext, p_ext, None if form["extra"] is None else prob.weighted(res1))
+    restored = [d.channel for d, _ in detected if d.restores]
+    if restored:  # what a restoration of lost samples missed is a force error the residual keeps
+        noise = {**noise, "kind": "upper_bound", "lo": 0.0, "source": noise["source"] + (
+            f"; what the restoration of {' and '.join(restored)}'s lost samples missed counts in it, so "
+            f"the level is an upper bound")}
+    sigma = noise["sigma"]
+    notes = list(noise["notes"])
+
+    # findings: the confirmed causes (in the extended model), then those a check did not confirm
+    corrections = corr_ext
+    findings = cause_findings(prob, sel, model, res1, sigma)
+    for f in findings:
+        f["confirmed"] = True
+    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out)
+    if not dynamic and sigma > 0:
+        static, corrections = static_findings(res0, sigma, corrections)
+        findings += static
+    src = noise["source"]
+    if noise["found"]:
+        findings.append(FORCE_NOISE.finding(sigma, noise["lo"], noise["hi"], noise["kind"],
+                                            src[0].upper() + src[1:] + "."))
+    elif sigma >= NOISE_CONFIRMED_MIN_N:
+        # too small to report as a level, above the comparison's own floor: never silence, a bound
+        b = noise["bound"]
+        findings.append(FORCE_NOISE.finding(sigma, 0.0, b, "upper_bound", (
+            f"Too small to measure, at most {b:.3g} N: {src} (below the {NOISE_MIN_N:g} N a level is "
+            f"reported at); the bound is the upper end of that level's 95 % interval.")))
+    # below the comparison's own floor: still a statement, the floor as the bound (after the joint
+    # widening, which it does not take part in: the floor is no statistical interval)
+    b = max(noise["bound"], NOISE_CONFIRMED_MIN_N)
+    floor_bound = None if (noise["found"] or sigma >= NOISE_CONFIRMED_MIN_N) else FORCE_NOISE.finding(
+        sigma, 0.0, b, "upper_bound", (
+            f"At most {b:.3g} N, the comparison's own floor: {src}; a force noise below "
+            f"{NOISE_CONFIRMED_MIN_N:g} N cannot be told from the comparison's own error."))
+    findings = [{**d.finding(det), "confirmed": True} for d, det in detected] + form["findings"] + findings
+    findings = _stand_ins(findings, form.get("unseen") or [])
+    # logger faults (found by the reader before anything was fitted; the run is their sound part)
+    # lead the list: every other finding holds for the sound part only
+    faults = (getattr(run, "time_base", None) or {}).get("logger_faults") or []
+    findings = [{"cause": "channel_fault", "channel": f["channel"], "kind": f["kind"], "span_s": f["span_s"],
+                 "estimate": float(f["span_s"][1] - f["span_s"][0]), "unit": "s", "interval": None,
+                 "evidence": f["evidence"] + "; the run is analysed without it"} for f in faults] + findings
+    findings = joint_intervals(findings)
+    if not findings:
+        findings.append({"cause": "none", "evidence": (
+            "no systematic cause passes the test and " + noise["source"] +
+            ", indistinguishable from the numerical floor of the comparison.")})
+    if floor_bound is not None:
+        findings.append(floor_bound)
+    notes += identifiability_notes(prob, sel) + form["notes"]
+
+    # extended model and gain
+    params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
+    gain = residual_gain(prob, res0, res1, bool(fit.causes) or form["extra"] is not None, corrections, dynamic)
+    sim_err = enforced_terms(prob_lin, model, res0)
+    nonlinear = {k: v for d, det in detected for k, v in d.model_terms(det).items()} | form["correction"]
+    sims = {}
+    if with_simulation and (run.has("beta") or run.has("z3")):
+        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, nonlinear)
+
+    report = {
+        "schema": SCHEMA,
+        "kind": "vehicle",
+        "simulation_error": sim_err,
+        "findings": findings,
+        "extended_model": {"parameters": params_ext, "corrections": with_detections(corrections, detected).to_json(),
+                           **({"nonlinear": nonlinear} if nonlinear else {})},
+        "gain": gain,
+        "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
+                "duration_s": float(run.t[-1] - run.t[0]),
+                "channels": sorted(run.channels), "residual_channels": prob.names,
+                "time_base": run_block(getattr(run, "time_base", None))},
+        "notes": notes,
+    }
+    if plots_dir is not None:
+        write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, sims,
+                            sigma, report)
+    return report
+
+
+#: the linear parameter a nonlinear suspension cause of each axle looks like (front: the k3/d3
+#: spring and damper over s1; rear: k4/d4): a stop or a progressive spring a stiffer spring, an
+#: asymmetric damper a damper rate
+_STANDS_IN = {("bump_stop", 0): "k3", ("progressive_spring", 0): "k3", ("damper_asymmetry", 0): "d3",
+              ("bump_stop", 1): "k4", ("progressive_spring", 1): "k4", ("damper_asymmetry", 1): "d4"}
+
+
+def _stand_ins(findings, unseen):
+    """A linear parameter of an axle whose nonlinear suspension causes the run could not show may
+    stand in for one of them (a stop or a progressive spring reads as a stiffer spring, an
+    asymmetric damper as a damper rate): the finding says so (``may_stand_in_for``), not only the
+    notes. Returns the findings with the key set (new dicts where it is)."""
+    out = list(findings)
+    for i, f in enumerate(findings):
+        if f.get("cause") != "parameter_error":
+            continue
+        names = sorted({n for n, axle in unseen if _STANDS_IN.get((n, axle)) == f.get("parameter")})
+        if names:
+            out[i] = {**f, "may_stand_in_for": names, "evidence": f["evidence"] + (
+                f" It may stand in for a {' or '.join(names)} on this axle, which the run could not show "
+                f"(no spring travel measured, or too noisy): a linear change of the parameter is what such a "
+                f"cause looks like without one.")}
     return out
