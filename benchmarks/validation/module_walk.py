@@ -7,8 +7,11 @@ into it from another module and *left* when the last of its frames returns. A **
 call into a module that was entered and left before: the run comes back to a room it had left.
 Returning to a caller is not a re-entry (the caller never left); an import (a module's body
 running) is not a visit. Shared helpers are the modules
-called from three or more other modules (numerical utilities, records, the cause registry): their
-re-entries are counted apart.
+called from three or more other modules (numerical utilities, records) and the modules that
+define the registered causes (the cause registry: ``jaxdrift.diagnosis.registered_causes()``, the
+classes' modules and their bases'; each cause owns its behaviour, so every stage that asks a cause
+calls into its module, however few stages that are): their re-entries are counted apart. The count
+by the three-callers rule alone is printed beside it.
 
     python benchmarks/validation/module_walk.py RUN.csv --model MODEL.json [--json OUT]
 
@@ -22,6 +25,17 @@ import argparse
 import collections
 import json
 import sys
+
+
+def registry_modules() -> set[str]:
+    """The modules that define the registered causes' classes and their bases."""
+    from jaxdrift.diagnosis import registered_causes
+
+    mods = set()
+    for causes in registered_causes().values():
+        for c in causes:
+            mods |= {k.__module__ for k in type(c).__mro__ if k.__module__.startswith("jaxdrift")}
+    return mods
 
 
 def walk(argv):
@@ -67,12 +81,15 @@ def walk(argv):
         rc = main(argv)
     finally:
         sys.setprofile(None)
-    helpers = {m for m, c in callers.items() if len(c) >= 3}
+    by_callers = {m for m, c in callers.items() if len(c) >= 3}
+    helpers = by_callers | registry_modules()
     order = list(dict.fromkeys(entered))
     counts = collections.Counter(entered)
     own = [(m, c) for m, c in reentries if m not in helpers]
     return {"exit": rc, "modules": len(order), "entries": len(entered), "reentries": len(reentries),
-            "reentries_not_helpers": len(own), "helpers": sorted(helpers),
+            "reentries_not_helpers": len(own),
+            "reentries_not_called_from_three": sum(1 for m, _ in reentries if m not in by_callers),
+            "helpers": sorted(helpers),
             "order": [(m, counts[m]) for m in order],
             "reentered": collections.Counter(f"{m} <- {c}" for m, c in own).most_common()}
 
@@ -91,7 +108,8 @@ def main(argv=None):
             args += ["--model", a.model]
         res = walk(args)
     print(f"exit {res['exit']}: {res['modules']} modules, {res['entries']} entries, {res['reentries']} re-entries "
-          f"({res['reentries_not_helpers']} into modules that are not shared helpers)")
+          f"({res['reentries_not_helpers']} into modules that are not shared helpers; "
+          f"{res['reentries_not_called_from_three']} by the three-callers rule alone)")
     for m, n in res["reentered"][:40]:
         print(f"  {n:4d}  {m}")
     if a.json:
