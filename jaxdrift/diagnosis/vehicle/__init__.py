@@ -1,11 +1,14 @@
 """Diagnosis of a measured vehicle run: residuals, cause candidates, model extension, report.
 
-Modules, in the order the diagnosis runs them: ``_residuals`` (the residual pipeline, on the exact
-discretisation of ``_discretise``), ``_detectors`` and ``_motion_noise`` (noise on forces and on
-the measured motion), ``_causes`` (the candidates as parameters), ``_problem`` (weighted residual,
-noise response, fit), ``_select`` (which causes), ``_confirm`` (each correction must improve the
-model on the whole run and on each half), ``_extend`` (re-simulation of the extended model), ``_report`` and ``_plots``
-(the report), ``_pipeline`` (``diagnose_vehicle_run``).
+Modules, in the order the diagnosis runs them: ``_detectors`` (the causes read off the forces
+before anything is fitted, noise on the forces) and ``_motion_noise`` (noise on the measured
+motion), ``_residuals`` (the residual pipeline, on the exact discretisation of ``_discretise``),
+``_causes`` and ``_nonlinear`` (the catalogue: the candidates as parameters, the nonlinear causes),
+``_problem`` (weighted residual, noise response, fit), ``_select`` (which causes), ``_adequacy``
+(the model's form), ``_confirm`` (each correction must improve the model on the whole run and on
+each half, and its re-simulation), ``_report`` (the report, with ``_extend``'s re-simulation of the
+extended model and ``_plots``), ``_pipeline`` (``diagnose_vehicle_run``, which calls the steps in
+that order).
 
 The names below are the vehicle diagnosis's public API: the command line, the campaign (its joint
 fit over runs re-uses the single-run problem, candidates and selection), durability and the
