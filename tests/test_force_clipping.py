@@ -60,3 +60,22 @@ def test_a_clipped_run_is_named_restored_and_kept_whole(tmp_path, base):
     left = np.sqrt(np.mean((series["f1_corrected"] - x)[pinned] ** 2))
     lost = np.sqrt(np.mean((cols["f1"] - x)[pinned] ** 2))
     assert left < 0.5 * lost, (left, lost)
+
+
+def test_durability_drives_its_variants_with_the_restored_forces(base):
+    """Durability's section forces take the report's corrections: a clipped channel's bursts are
+    restored before its variants are driven (the forces it holds equal the record's restoration)."""
+    from jaxdrift.durability._variants import build_section_forces
+    from jaxdrift.io import Corrections, ForceCorrection
+
+    t, x = base["t"], base["f1"]
+    hi = float(np.quantile(x, 0.995))
+    forces = np.stack([np.minimum(x, hi), base["f2"]], axis=1)
+    corr = Corrections(f1=ForceCorrection(clip=(None, hi)))
+    sf = build_section_forces(t, forces, None, gs.SEED_MODEL, gs.SEED_MODEL, corr,
+                              {"k_rot": 0.0, "d_rot": 0.0}, float(t[1] - t[0]))
+    held = np.asarray(sf.forces)
+    np.testing.assert_array_equal(held[:, 0], corr.f1.restore(t, forces[:, 0]))
+    np.testing.assert_array_equal(held[:, 1], base["f2"])
+    pinned = forces[:, 0] == hi
+    assert np.sqrt(np.mean((held[pinned, 0] - x[pinned]) ** 2)) < 0.5 * np.sqrt(np.mean((hi - x[pinned]) ** 2))
