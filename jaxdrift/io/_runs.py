@@ -448,7 +448,7 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
 
 
 def _logger_faults(fname, t, data, refs, tb, notes):
-    """A force channel that goes dead, sticks or clips for part of the run (:mod:`._faults`): the
+    """A force channel that goes dead or sticks for part of the run (:mod:`._faults`): the
     run is cut to its longest sound stretch, the faults named in ``time_base["logger_faults"]``;
     refused where the sound stretch is too short to analyse."""
     n = len(t)
