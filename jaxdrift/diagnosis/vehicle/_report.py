@@ -416,9 +416,17 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
     noise = noise_level(prob, sel, corr_ext, p_ext, None if form["extra"] is None else prob.weighted(res1))
     restored = [d.channel for d, _ in detected if d.restores]
     if restored:  # what a restoration of lost samples missed is a force error the residual keeps
-        noise = {**noise, "kind": "upper_bound", "lo": 0.0, "source": noise["source"] + (
-            f"; what the restoration of {' and '.join(restored)}'s lost samples missed counts in it, so "
-            f"the level is an upper bound")}
+        src = noise["source"] + (f"; what the restoration of {' and '.join(restored)}'s lost samples "
+                                 f"missed counts in it, so the level is an upper bound")
+        hf, _, hf_hi = _force_hf_noise(run)
+        hf_hi = hf + math.hypot(hf_hi - hf, FORCE_NOISE.method_half(hf))  # with its method part, as above
+        if noise["found"] and hf_hi < noise["hi"]:
+            # the forces' 4th differences (a robust level over the whole record, which the few
+            # restored samples hardly move) are an upper bound too: the smaller one is reported
+            src += (f"; the forces' 4th differences give {hf:.3g} N, which the restored samples hardly "
+                    f"move: the smaller upper bound is reported")
+            noise = {**noise, "sigma": hf, "hi": hf_hi, "bound": max(hf_hi, hf)}
+        noise = {**noise, "kind": "upper_bound", "lo": 0.0, "source": src}
     sigma = noise["sigma"]
     notes = list(noise["notes"])
 
