@@ -28,6 +28,8 @@ from dataclasses import dataclass, fields, replace
 
 import numpy as np
 
+from ._timebase import true_runs
+
 FORCE_CHANNELS = ("f1", "f2")
 _JSON_KEYS = ("offset", "scale", "delay")
 _OPTIONAL_KEYS = ("drift", "leak")
@@ -66,8 +68,7 @@ def unclip(t, x, lo: float | None = None, hi: float | None = None) -> np.ndarray
         if level is None:
             continue
         pinned = x == level
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], pinned.astype(np.int8), [0]])))
-        for a, b in zip(edges[::2], edges[1::2]):
+        for a, b in true_runs(pinned):
             i0, i1 = a - UNCLIP_FLANK, b + UNCLIP_FLANK
             if i0 < 0 or i1 > n:
                 continue

@@ -26,6 +26,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from ...io._corrections import FORCE_CHANNELS, unclip
+from ...io._timebase import true_runs
 from .._cause import AbstractCause, SignalDetector, StateForce
 from .._diffnoise import mad_sigma
 from ._discretise import _poly_coeffs
@@ -523,8 +524,7 @@ class ForceClipping(AbstractCause, SignalDetector):
             if side == "lo" and v == 0.0:
                 continue  # a tyre in the air, not a range
             at = f == v
-            edges = np.flatnonzero(np.diff(np.concatenate([[0], at.astype(np.int8), [0]])))
-            runs = [(a, b) for a, b in zip(edges[::2], edges[1::2]) if b - a >= 2]
+            runs = [(a, b) for a, b in true_runs(at) if b - a >= 2]
             # an atom, not the top of a coarse quantisation: the value next to it holds far fewer
             inner = fin[fin < v] if side == "hi" else fin[fin > v]
             nxt = int(np.sum(inner == (inner.max() if side == "hi" else inner.min()))) if inner.size else 0

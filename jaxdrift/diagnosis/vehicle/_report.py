@@ -100,7 +100,8 @@ def _sensor_noise(prob: "_Problem") -> bool:
                for v in prob.motion_noise.values())
 
 
-def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarray | None = None) -> dict:
+def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarray | None = None,
+                restored=()) -> dict:
     """The force-noise level with its 95 % interval and the sentence saying where it comes from.
 
     Runs with a residual to compare: the low band of the residual left after the fit (see
@@ -108,13 +109,16 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
     on the measured motion left in the band reads as force noise in the residual). Forces only:
     the 4th differences, an upper bound. ``r``: the weighted residual of the extended model where
     it differs from the fit's (a nonlinear force refitted after the linear causes were chosen);
-    default the fit's."""
+    default the fit's. ``restored``: the force channels whose lost samples a detection restored
+    (what the restoration missed is a force error the residual keeps: the level is an upper
+    bound, the smaller of the residual's and the forces' 4th differences')."""
     run = prob.pipe.run
     dynamic = len(sel.fit.r) > 2
     full = sel.sigma if r is None else math.sqrt(float(r @ r) / max(len(r) - len(sel.fit.causes), 1))
     r = sel.fit.r if r is None else r
     notes = []
     kind = "estimate"  # or "upper_bound": a level the noise cannot exceed, interval from 0
+    hf, hf_lo, hf_hi = _force_hf_noise(run)
     if dynamic:
         sigma, with_motion, dof = prob.lowband_levels(
             r, {ch: corr_ext[ch].gain for ch in FORCE_CHANNELS},
@@ -126,7 +130,6 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                f"fit has the power that white force noise of {sigma:.3g} N would give it "
                f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
                f"to {full:.3g} N including the comparison's own discretisation error)")
-        hf, hf_lo, hf_hi = _force_hf_noise(run)
         from_lowband = not (prob.pipe.band and hf < sigma)  # else the 4th differences give less
         if not from_lowband:
             # Sensor noise on the measured motion left in the band adds to the residual's low band
@@ -183,7 +186,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                     "an anti-aliasing filter folds into the low band, so this level is an upper bound")
     else:
         from_lowband = False
-        sigma, _, hi = _force_hf_noise(run)
+        sigma, hi = hf, hf_hi
         kind = "upper_bound"  # see src
         found = sigma > NOISE_MIN_N
         src = (f"no pitch, heave or spring travel to compare with: the 4th differences of the "
@@ -209,6 +212,17 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
         lo = 0.0
     elif lo > 0.0:
         lo = max(sigma - math.hypot(sigma - lo, m), 0.0)
+    if restored:  # what a restoration of lost samples missed is a force error the residual keeps
+        src += (f"; what the restoration of {' and '.join(restored)}'s lost samples missed counts in it, "
+                f"so the level is an upper bound")
+        hf_bound = hf + math.hypot(hf_hi - hf, FORCE_NOISE.method_half(hf))  # with its method part
+        if found and hf_bound < hi:
+            # the forces' 4th differences (a robust level over the whole record, which the few
+            # restored samples hardly move) are an upper bound too: the smaller one is reported
+            src += (f"; the forces' 4th differences give {hf:.3g} N, which the restored samples hardly "
+                    f"move: the smaller upper bound is reported")
+            sigma, hi = hf, hf_bound
+        kind, lo = "upper_bound", 0.0
     # a level too small to report still bounds the noise: the upper end of its interval (the band
     # holds the noise and whatever else the comparison leaves there)
     bound = max(hi, sigma)
@@ -413,20 +427,8 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
     # force as the adequacy test refitted it last, not as it stood when the linear causes were
     # chosen (a stop's force of 7 x the spring, refitted by 0.04 %, left a residual that read as
     # 10 x the true noise)
-    noise = noise_level(prob, sel, corr_ext, p_ext, None if form["extra"] is None else prob.weighted(res1))
-    restored = [d.channel for d, _ in detected if d.restores]
-    if restored:  # what a restoration of lost samples missed is a force error the residual keeps
-        src = noise["source"] + (f"; what the restoration of {' and '.join(restored)}'s lost samples "
-                                 f"missed counts in it, so the level is an upper bound")
-        hf, _, hf_hi = _force_hf_noise(run)
-        hf_hi = hf + math.hypot(hf_hi - hf, FORCE_NOISE.method_half(hf))  # with its method part, as above
-        if noise["found"] and hf_hi < noise["hi"]:
-            # the forces' 4th differences (a robust level over the whole record, which the few
-            # restored samples hardly move) are an upper bound too: the smaller one is reported
-            src += (f"; the forces' 4th differences give {hf:.3g} N, which the restored samples hardly "
-                    f"move: the smaller upper bound is reported")
-            noise = {**noise, "sigma": hf, "hi": hf_hi, "bound": max(hf_hi, hf)}
-        noise = {**noise, "kind": "upper_bound", "lo": 0.0, "source": src}
+    noise = noise_level(prob, sel, corr_ext, p_ext, None if form["extra"] is None else prob.weighted(res1),
+                        restored=[d.channel for d, _ in detected if d.restores])
     sigma = noise["sigma"]
     notes = list(noise["notes"])
 
