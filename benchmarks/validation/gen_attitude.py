@@ -147,6 +147,53 @@ def design(n: int, seed: int) -> list[dict]:
             for i, j in enumerate(order)]
 
 
+#: the reference's breadth in the wide design (``design_wide``): what users record as a reference
+#: attitude, from motion capture at 100 Hz to a GNSS/INS solution at 1 Hz and a logger's 0.2 Hz
+REF_RATES_HZ = (100.0, 50.0, 20.0, 10.0, 5.0, 2.0, 1.0, 0.5, 0.2)
+REF_QUALITIES = ("perfect", "noisy", "converging")
+WIDE_PAIRS = [("gyro_bias", "gyro_scale"), ("gyro_bias", "gyro_bias_drift"), ("gyro_scale", "gyro_bias_drift")]
+
+
+def design_wide(n: int, seed: int) -> list[dict]:
+    """``n`` gyro cases at the breadth users record (``make_case`` draws the rest for ``breadth
+    "wide"``): a reference attitude at 100 Hz down to 0.2 Hz (``REF_RATES_HZ``), in the gyro's frame
+    or turned (a few degrees, or an axis convention), on the gyro's clock or 2-80 ms late, perfect,
+    noisy (0.2-3 mrad) or an estimator converging from 2-10 deg; vibration of 0.05-1 rad/s per sample
+    on half the runs. 20 % noise only, 50 % one gyro effect, 30 % two; shuffled."""
+    n_clean = round(0.2 * n)
+    n_single = round(0.5 * n)
+    plan = [("clean", ())] * n_clean + [("single", (GYRO_CAUSES[i % 3],)) for i in range(n_single)]
+    plan += [("pair", WIDE_PAIRS[i % 3]) for i in range(n - n_clean - n_single)]
+    rng = np.random.default_rng([seed, 0x77])
+    order = rng.permutation(len(plan))
+    return [{"index": i, "stratum": plan[j][0], "what": list(plan[j][1]), "seed": int(rng.integers(2**31)),
+             "breadth": "wide"} for i, j in enumerate(order)]
+
+
+def _draw_wide(case: dict, fs: float) -> dict:
+    """The wide design's reference and vibration (own stream: the standard draws are unchanged)."""
+    rng = np.random.default_rng([case["seed"], 0x5EF])
+    rate = float(rng.choice([r for r in REF_RATES_HZ if r <= fs]))
+    frame = str(rng.choice(["same", "same", "turned", "convention"]))
+    if frame == "turned":
+        axis = rng.standard_normal(3)
+        rotvec = axis / np.linalg.norm(axis) * math.radians(rng.uniform(0.5, 5.0))
+    elif frame == "convention":  # an IMU mounted with its x pointing back, or upside down
+        rotvec = np.array([0.0, 0.0, math.pi]) if rng.random() < 0.5 else np.array([math.pi, 0.0, 0.0])
+    else:
+        rotvec = np.zeros(3)
+    offset = 0.0 if rng.random() < 0.5 else float(rng.uniform(0.002, 0.08) * rng.choice([-1.0, 1.0]))
+    quality = str(rng.choice(REF_QUALITIES, p=[0.4, 0.4, 0.2]))
+    ref = {"rate_hz": rate, "frame": frame, "rotvec": [float(v) for v in rotvec], "clock_offset_s": offset,
+           "quality": quality, "noise_rad": _loguniform(rng, 2e-4, 3e-3) if quality != "perfect" else 0.0}
+    if quality == "converging":
+        ref["initial_error_deg"] = float(rng.uniform(2.0, 10.0))
+        ref["time_constant_s"] = float(rng.uniform(3.0, 20.0))
+        ref["noise_rad"] = _loguniform(rng, 2e-4, 1e-3)
+    vib = 0.0 if rng.random() < 0.5 else _loguniform(rng, 0.05, 1.0)
+    return {"reference": ref, "vibration_rad_s": vib, "vibration_seed": int(rng.integers(2**31))}
+
+
 def make_case(case: dict, *, durations=(30.0, 300.0), rates=(100, 200, 250, 400, 500, 1000),
               max_samples: int | None = None) -> dict:
     """Draw everything else of a case; ``max_samples`` caps the run's length (CPU budget)."""
@@ -161,6 +208,11 @@ def make_case(case: dict, *, durations=(30.0, 300.0), rates=(100, 200, 250, 400,
     array = need_array or rng.random() < 0.4
     reference = need_ref or rng.random() < 0.5
     ref_every = int(rng.choice([1, 1, 10, 100])) if reference else 0
+    wide = _draw_wide(case, fs) if case.get("breadth") == "wide" else {}
+    if wide:  # a reference on every wide run, and no array: the wide design is the gyro's
+        array, ref_every = False, max(1, int(round(fs / wide["reference"]["rate_hz"])))
+        if T * wide["reference"]["rate_hz"] < 12:  # at least a dozen reference samples
+            T = float(math.ceil(12 / wide["reference"]["rate_hz"]))
     positions = draw_array(rng) if array else None
     N = 0 if positions is None else len(positions)
     effects = []
@@ -196,7 +248,7 @@ def make_case(case: dict, *, durations=(30.0, 300.0), rates=(100, 200, 250, 400,
         "static_s": float(rng.choice([0.0, rng.uniform(2.0, 10.0)])), "reference_every": ref_every,
         "sign_flips": bool(rng.random() < 0.5), "positions": None if positions is None else positions.tolist(),
         "precision": int(rng.integers(6, 10)), "effects": effects,
-        "motion_seed": int(rng.integers(2**31)), "noise_seed": int(rng.integers(2**31)),
+        "motion_seed": int(rng.integers(2**31)), "noise_seed": int(rng.integers(2**31)), **wide,
     }
 
 
@@ -216,13 +268,32 @@ def generate(case: dict) -> tuple[dict, dict]:
     tau = np.arange(n) * dt
     mrng = np.random.default_rng(case["motion_seed"])
     motion = Motion(mrng, case["static_s"])
+    if case.get("vibration_rad_s"):  # rotor or engine vibration the samples resolve (0.08-0.3 fs)
+        vrng = np.random.default_rng(case["vibration_seed"])
+        k = 3
+        for j in range(3):
+            motion.terms[j] = motion.terms[j] + [
+                (case["vibration_rad_s"] * math.sqrt(2.0 / k), vrng.uniform(0.08, 0.3) * min(fs, 500.0),
+                 vrng.uniform(0, 2 * np.pi)) for _ in range(k)]
     yaw0, pitch0, roll0 = mrng.uniform(-np.pi, np.pi), mrng.uniform(-0.03, 0.03), mrng.uniform(-0.03, 0.03)
     # q0 from yaw-pitch-roll (z-y-x): product of elementary rotations
     cy, sy, cp, sp, cr, sr = (np.cos(yaw0 / 2), np.sin(yaw0 / 2), np.cos(pitch0 / 2), np.sin(pitch0 / 2),
                               np.cos(roll0 / 2), np.sin(roll0 / 2))
     q0 = np.array([cr * cp * cy + sr * sp * sy, sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
                    cr * cp * sy - sr * sp * cy])
-    q = attitude(motion, q0, tau)
+    ref = case.get("reference")
+    t_ref = None
+    if ref and case["reference_every"]:  # the reference row stamped t shows the body at t - offset
+        rows = np.arange(0, n, case["reference_every"])
+        t_true = tau[rows] - ref["clock_offset_s"]
+        inside = (t_true >= 0.0) & (t_true <= tau[-1])
+        rows, t_true = rows[inside], t_true[inside]
+        grid = np.union1d(tau, t_true)
+        qg = attitude(motion, q0, grid)
+        q = qg[np.searchsorted(grid, tau)]
+        t_ref = (rows, qg[np.searchsorted(grid, t_true)])
+    else:
+        q = attitude(motion, q0, tau)
     w, dw = motion.rates(tau)
     nrng = np.random.default_rng(case["noise_seed"])
     eff = {e["cause"] + str(e.get("channel", "")): e for e in case["effects"]}
@@ -243,7 +314,14 @@ def generate(case: dict) -> tuple[dict, dict]:
         w_meas += eff["gyro_noise"]["value"] / math.sqrt(dt) * nrng.standard_normal((n, 3))
     cols = {"t": case["t0"] + tau, "wx": w_meas[:, 0], "wy": w_meas[:, 1], "wz": w_meas[:, 2]}
     extra = {}
-    if case["reference_every"]:
+    if t_ref is not None:
+        rows, qr_rows = t_ref
+        qr_rows = _distort_reference(qr_rows, tau[rows], ref, np.random.default_rng(case["noise_seed"] + 1))
+        qr = np.full((n, 4), np.nan)
+        qr[rows] = qr_rows * (np.where(nrng.random(len(rows)) < 0.5, -1.0, 1.0)[:, None] if case["sign_flips"] else 1.0)
+        for i, c in enumerate(("qw", "qx", "qy", "qz")):
+            cols[c] = qr[:, i]
+    elif case["reference_every"]:
         qr = q * (np.where(nrng.random(n) < 0.5, -1.0, 1.0)[:, None] if case["sign_flips"] else 1.0)
         keep = np.zeros(n, bool)
         keep[:: case["reference_every"]] = True
@@ -281,6 +359,26 @@ def generate(case: dict) -> tuple[dict, dict]:
             for j, ax in enumerate("xyz"):
                 cols[f"a{i + 1}{ax}"] = acc[:, i, j]
     return cols, extra
+
+
+def _distort_reference(q, t, ref: dict, rng) -> np.ndarray:
+    """The reference as recorded: the marker frame turned by ``rotvec`` against the gyro's (so that
+    gyro rate = R x reference body rate), an estimator's error decaying from ``initial_error_deg``,
+    white rotation noise of ``noise_rad`` per axis. Quaternions scalar first."""
+    from scipy.spatial.transform import Rotation
+
+    r = Rotation.from_quat(np.column_stack([q[:, 1:], q[:, :1]]))
+    r = r * Rotation.from_rotvec(ref["rotvec"])
+    err = np.zeros((len(t), 3))
+    if ref.get("initial_error_deg"):
+        d = rng.standard_normal(3)
+        err += np.outer(np.exp(-(t - t[0]) / ref["time_constant_s"]), d / np.linalg.norm(d)) * math.radians(ref["initial_error_deg"])
+    if ref.get("noise_rad"):
+        err += ref["noise_rad"] * rng.standard_normal((len(t), 3))
+    r = r * Rotation.from_rotvec(err)
+    x = r.as_quat()
+    out = np.column_stack([x[:, 3:], x[:, :3]])
+    return out * np.sign(out[:, :1] + 1e-300)
 
 
 def write_run(out_dir: str, name: str, case: dict, cols: dict, extra: dict) -> dict:

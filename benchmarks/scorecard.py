@@ -1,0 +1,617 @@
+"""One scorecard over every world the project knows: generated runs from both generators, the
+campaigns, and the real recordings, each scored against its truth by one set of rules, in one table.
+
+Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
+
+- ``vehicle-*/indep``: the independent generator ``validation/gen_vehicle.py`` (scipy half-car, its own
+  roads), its standard, gain-drift, nonlinear and crosstalk designs (``validation/sweep.py``) and
+  its clipped runs (``validation/clip_sweep.py``);
+- ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
+  draw, ``diagnose_sweep.py``);
+- ``attitude-standard/indep`` and ``attitude-wide/indep``: ``validation/gen_attitude.py``; the wide
+  design draws references at 100 Hz down to 0.2 Hz, turned frames and axis conventions, clock
+  offsets, noisy and converging references, and vibration of 0.05-1 rad/s per sample;
+- ``attitude-standard/own`` and ``attitude-wide/own``: jaxdrift's own attitude generator
+  (``jaxdrift.studies._attgen``, ``diagnose_attitude_sweep.py``), the wide one with its reference
+  thinned to 0.2-100 Hz, turned, and noisy;
+- ``campaign/indep``: ``validation/gen_campaign.py`` campaigns through ``jaxdrift campaign`` on Dask,
+  scored by ``validation/campaign_validation.py``;
+- ``real/<reader>``: the recordings of ``tests/data/real/SOURCES.toml`` by reader (PX4 ULog, ROS bag,
+  motion-capture CSV, MDF4), scored by ``validation/real_corpus.py`` against an independent scipy fit.
+
+Measures per world (``score_world``): **right first** (single-effect runs: the true cause first;
+pairs: both among the first two; effect-free runs: no systematic cause first; campaigns: every
+shared parameter's joint interval holds the truth; a real recording: every clear bias named, nothing
+absurd, the noise rule held); **confirmed** (runs whose right systematic findings are all
+confirmed); **extra confirmed** (runs carrying a confirmed systematic finding that matches no hidden
+effect nor an alternative the report declared); **false alarms** (effect-free runs whose first
+finding is systematic); **coverage** per interval kind (cause, and estimate or upper bound for the
+noise); **false reference flags** (``reference_inconsistent`` on a run whose reference has no
+defect); **seconds per run** (median wall time). Attitude findings carry no confirmation: every
+reported systematic finding counts as claimed.
+
+``--quick`` runs the first ``quick`` cases of each generated world (a subset of the full card) and,
+with ``--check``, compares it with the committed baseline's numbers on the same cases. A measure may
+fall by its statistical noise and no more: a change that leaves a world's rate p as it was flips
+runs at random, so over the n quick cases the count may drop by ``ceil(1.645 sqrt(n p (1 - p)))``
+(the one-sided 95 % binomial spread), p being the baseline's rate over the full world
+((k + 1) / (n + 2), so that a perfect world still allows for its own sampling). Beyond that the check
+fails.
+
+    python benchmarks/scorecard.py                       # the full card, about 40 min on 2 cores
+    python benchmarks/scorecard.py --quick --check       # CI: the subset against the baseline
+    python benchmarks/scorecard.py --write-baseline      # the full card into results/scorecard.json
+    python benchmarks/scorecard.py --worlds attitude-wide/indep --jobs 2
+
+Per-run results are cached in ``--cache`` (default ``out/scorecard-cache/<commit>``) so an
+interrupted card continues where it stopped.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+import traceback
+from collections import defaultdict
+from dataclasses import dataclass, field
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT))
+
+RESULT = HERE / "results" / "scorecard.json"
+Z_ONE_SIDED = 1.645
+
+
+@dataclass(frozen=True)
+class World:
+    name: str
+    kind: str  # vehicle | attitude | campaign | real
+    backend: str
+    seed: int
+    n: int
+    quick: int
+    options: dict = field(default_factory=dict)
+
+
+#: fresh seeds, never used for tuning before this card
+WORLDS = [
+    World("vehicle-standard/indep", "vehicle", "indep_vehicle", 20261205, 24, 3, {"design": "standard"}),
+    World("vehicle-gain_drift/indep", "vehicle", "indep_vehicle", 20261206, 8, 2, {"design": "gain_drift"}),
+    World("vehicle-nonlinear/indep", "vehicle", "indep_vehicle", 20261207, 12, 2, {"design": "nonlinear"}),
+    World("vehicle-crosstalk/indep", "vehicle", "indep_vehicle", 20261208, 6, 1, {"design": "crosstalk"}),
+    World("vehicle-clipping/indep", "vehicle", "indep_clip", 20261209, 6, 1),
+    World("vehicle-standard/own", "vehicle", "own_vehicle", 20261210, 12, 2),
+    World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
+    World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
+    World("attitude-standard/own", "attitude", "own_attitude", 20261213, 12, 2),
+    World("attitude-wide/own", "attitude", "own_attitude", 20261214, 16, 3, {"wide": True}),
+    World("campaign/indep", "campaign", "campaign", 20261215, 2, 0, {"runs": (4, 8)}),
+    World("real/ulog", "real", "real", 0, 0, 0, {"reader": "ulog"}),
+    World("real/rosbag", "real", "real", 0, 0, 0, {"reader": "rosbag"}),
+    World("real/mocap", "real", "real", 0, 0, 0, {"reader": "csv"}),
+    World("real/mdf", "real", "real", 0, 0, 0, {"reader": "mdf"}),
+]
+BY_NAME = {w.name: w for w in WORLDS}
+
+
+# ----------------------------------------------------------------------------------- cases
+def cases(world: World) -> list[dict]:
+    """The world's cases, JSON-able, in index order (the quick subset is the first ``quick``)."""
+    import numpy as np
+
+    b, o = world.backend, world.options
+    if b == "indep_vehicle":
+        from benchmarks.validation import gen_vehicle as gv
+
+        fn = {"standard": gv.design, "gain_drift": gv.design_gain_drift, "nonlinear": gv.design_nonlinear,
+              "crosstalk": gv.design_crosstalk}[o["design"]]
+        return fn(world.n, world.seed)
+    if b == "indep_clip":
+        from benchmarks.validation import gen_vehicle as gv
+
+        return [dict(c, clip=True) for c in gv.design(world.n, world.seed)]
+    if b == "indep_attitude":
+        from benchmarks.validation import gen_attitude as ga
+
+        return (ga.design_wide if o["design"] == "wide" else ga.design)(world.n, world.seed)
+    if b == "own_vehicle":
+        from benchmarks.diagnose_sweep import DEFAULT_CHANNELS
+        from jaxdrift.studies import _rungen as rg
+
+        rng = np.random.default_rng(world.seed)
+        sets = [tuple(c.split(",")) for c in DEFAULT_CHANNELS.split(";")]
+        out = []
+        for i in range(world.n):
+            c = rg.draw_sweep_case(rng, sets)
+            out.append({"index": i, **c, "channels": list(c["channels"])})
+        return out
+    if b == "own_attitude":
+        from benchmarks.diagnose_attitude_sweep import draw
+
+        rng = np.random.default_rng(world.seed)
+        out = []
+        for i in range(world.n):
+            effect, kw, truth = draw(rng)
+            c = {"index": i, "effect": effect, "kw": kw, "truth": truth, "gen_seed": int(rng.integers(2**31))}
+            if o.get("wide"):
+                c["wide"] = {"rate_hz": float(rng.choice([50.0, 10.0, 2.0, 1.0, 0.5, 0.2])),
+                             "turn_deg": float(rng.choice([0.0, 0.0, rng.uniform(0.5, 5.0)])),
+                             "noise_rad": float(rng.choice([0.0, math.exp(rng.uniform(math.log(2e-4), math.log(3e-3)))])),
+                             "seed": int(rng.integers(2**31))}
+            out.append(c)
+        return out
+    if b == "campaign":
+        rng = np.random.default_rng(world.seed)
+        lo, hi = o["runs"]
+        return [{"index": i, "runs": int(rng.integers(lo, hi + 1)), "seed": int(rng.integers(2**31))}
+                for i in range(world.n)]
+    if b == "real":
+        import tomllib
+
+        entries = tomllib.loads((ROOT / "tests/data/real/SOURCES.toml").read_text())["log"]
+        return [{"index": i, **e} for i, e in enumerate(x for x in entries if x["reader"] == o["reader"])]
+    raise ValueError(b)
+
+
+# ----------------------------------------------------------------------------------- one run
+def _trim(f: dict) -> dict:
+    from benchmarks.validation.sweep import _trim as trim
+
+    return trim(f)
+
+
+def _diagnose_vehicle(csv: str, model_path: str | None = None, model: dict | None = None, run=None) -> dict:
+    import jaxdrift
+
+    run = run if run is not None else jaxdrift.read_vehicle_run(csv)
+    model = model if model is not None else jaxdrift.read_model(model_path)
+    return jaxdrift.diagnose_vehicle_run(run, model, with_simulation=True)
+
+
+def run_case(world_name: str, case: dict) -> dict:
+    """Generate, diagnose and describe one case: the uniform record ``score_world`` reads."""
+    import numpy as np
+
+    world = BY_NAME[world_name]
+    rec = {"world": world_name, "index": case["index"]}
+    tmp = tempfile.mkdtemp(prefix="scorecard-")
+    t0 = time.time()
+    try:
+        b = world.backend
+        if b in ("indep_vehicle", "indep_clip"):
+            from benchmarks.validation import gen_vehicle as gv
+            from benchmarks.validation.sweep import SIZING, _where
+
+            full = gv.make_case({k: v for k, v in case.items() if k != "clip"}, **SIZING["vehicle"])
+            if case.get("clip"):  # f1 or f2 clipped on 0.2-2 % of its samples (clip_sweep's draw)
+                rng = np.random.default_rng(world.seed * 1000 + case["index"])
+                ch = ("f1", "f2")[int(rng.integers(2))]
+                full["effects"].append(gv.draw_effect(rng, "force_clipping", ch, None))
+            paths = gv.make_run(full, tmp)
+            rep = _diagnose_vehicle(paths["csv"], paths["model"])
+            rec.update(stratum=case["stratum"], truth=full["effects"], where=_where("vehicle", full))
+        elif b == "own_vehicle":
+            from jaxdrift.io._csvio import DEFAULT_MODEL, VehicleRun
+            from jaxdrift.studies import _rungen as rg
+
+            kw = {k: v for k, v in case.items() if k not in ("index", "effects")}
+            kw["channels"] = tuple(kw["channels"])
+            cols, _ = rg.make_run(model=dict(DEFAULT_MODEL), duration=10.0, effects=case["effects"], **kw)
+            run = VehicleRun("run.csv", cols["t"], {c: np.asarray(v) for c, v in cols.items() if c != "t"})
+            rep = _diagnose_vehicle(None, model=dict(DEFAULT_MODEL), run=run)
+            n_sys = sum(e["cause"] != "force_noise" for e in case["effects"])
+            rec.update(stratum=("clean", "single", "pair")[min(n_sys, 2)], truth=case["effects"],
+                       where=f"{case['fs']:g} Hz road {case['road_class']} {case['speed']:.0f} m/s {','.join(case['channels'])}")
+        elif b == "indep_attitude":
+            import jaxdrift
+            from benchmarks.validation import gen_attitude as ga
+            from benchmarks.validation.sweep import SIZING, _where
+
+            full = ga.make_case(case, **SIZING["attitude"])
+            paths = ga.make_run(full, tmp)
+            rep = jaxdrift.run_attitude_diagnosis(paths["csv"], paths["sensors"])
+            ref = full.get("reference")
+            where = _where("attitude", {**full, "n_sensors": len(full.get("positions") or [])})
+            if ref:
+                where += (f"; reference {ref['rate_hz']:g} Hz {ref['frame']} offset {ref['clock_offset_s'] * 1e3:.0f} ms "
+                          f"{ref['quality']}; vibration {full['vibration_rad_s']:.2g} rad/s")
+            rec.update(stratum=case["stratum"], truth=full["effects"], where=where,
+                       clean_reference=bool(full["reference_every"]) and (not ref or ref["quality"] != "converging"))
+        elif b == "own_attitude":
+            from jaxdrift.diagnosis.attitude._diagnose import run_attitude_diagnosis
+            from jaxdrift.studies._attgen import make_attitude_run
+
+            kw = dict(case["kw"])
+            wide = case.get("wide")
+            if wide:
+                kw["reference"] = max(1, int(round(kw["rate_hz"] / wide["rate_hz"])))
+                kw["duration"] = max(kw["duration"], math.ceil(12 / wide["rate_hz"]))
+            tr = make_attitude_run(tmp, case["gen_seed"], name="r", **kw)
+            path = tr["paths"]["run"]
+            if wide and (wide["turn_deg"] or wide["noise_rad"]):
+                _turn_reference(path, wide)
+            rep = run_attitude_diagnosis(path, None, None)
+            truth = [{"cause": c, "channel": ch, "value": v} for c, ch, v in case["truth"]]
+            truth.append({"cause": "gyro_noise", "value": kw["arw"]})
+            where = f"{kw['rate_hz']:g} Hz {kw['duration']:.0f} s reference {kw['reference']}"
+            if wide:
+                where += f" ({wide['rate_hz']:g} Hz, turned {wide['turn_deg']:.1f} deg, noise {wide['noise_rad']:.1e} rad)"
+            rec.update(stratum=("clean", "single", "pair")[min(len(case["truth"]), 2)], truth=truth, where=where,
+                       clean_reference=True)
+        elif b == "campaign":
+            rec.update(_campaign(case, tmp))
+            rep = None
+        elif b == "real":
+            rec.update(_real(case, tmp))
+            rep = None
+        else:
+            raise ValueError(b)
+        if rep is not None:
+            rec["findings"] = [_trim(f) for f in rep.get("findings", [])]
+    except Exception as e:  # noqa: BLE001 - a failing diagnosis is a result
+        rec["error"] = f"{type(e).__name__}: {e}"
+        rec["traceback"] = traceback.format_exc()[-1500:]
+    finally:
+        import shutil
+
+        shutil.rmtree(tmp, ignore_errors=True)
+    rec["wall_s"] = time.time() - t0
+    return rec
+
+
+def _turn_reference(path: str, wide: dict) -> None:
+    """The own generator's reference as a turned, noisy tracker records it (in place)."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    with open(path) as fh:
+        head = fh.readline().strip().split(",")
+    data = np.genfromtxt(path, delimiter=",", skip_header=1)
+    qi = [head.index(c) for c in ("qw", "qx", "qy", "qz")]
+    rows = np.isfinite(data[:, qi[0]])
+    q = data[rows][:, qi]
+    rng = np.random.default_rng(wide["seed"])
+    axis = rng.standard_normal(3)
+    r = Rotation.from_quat(q[:, [1, 2, 3, 0]]) * Rotation.from_rotvec(axis / np.linalg.norm(axis) * math.radians(wide["turn_deg"]))
+    r = r * Rotation.from_rotvec(wide["noise_rad"] * rng.standard_normal((len(q), 3)))
+    x = r.as_quat()
+    data[np.ix_(rows, qi)] = np.column_stack([x[:, 3:], x[:, :3]])
+    with open(path, "w") as fh:
+        fh.write(",".join(head) + "\n")
+        for row in data:
+            fh.write(",".join("" if v != v else repr(float(v)) for v in row) + "\n")
+
+
+def _campaign(case: dict, tmp: str) -> dict:
+    from benchmarks.validation import campaign_validation as cv
+    from benchmarks.validation import gen_campaign as gc
+
+    design = gc.draw_campaign(case["runs"], case["seed"])
+    runs = os.path.join(tmp, "runs")
+    gc.write_campaign(design, runs, progress=False)
+    out = os.path.join(tmp, "out")
+    exe = str(Path(sys.executable).with_name("jaxdrift"))
+    p = subprocess.run([exe, "-q", "campaign", "--manifest", os.path.join(runs, "campaign.toml"), "--out", out,
+                        "--workers", "1"], capture_output=True, text=True, timeout=3600)
+    if p.returncode != 0:
+        raise RuntimeError(f"jaxdrift campaign exit {p.returncode}: {p.stderr[-800:]}")
+    s = cv.score(runs, out)
+    return {"stratum": "campaign", "where": f"{case['runs']} runs, {design['vehicle_kind']}",
+            "campaign": {"shared": [{k: r.get(k) for k in ("parameter", "true", "joint", "joint_interval",
+                                                           "contains_truth")} for r in s["shared"]],
+                         "extra_joint": s["joint_parameters_not_in_truth"],
+                         "differs_alarms": [c for c in s["consistency"] if not c["consistent"]],
+                         "sensor_named_right": s["sensor_named_right"],
+                         "runs_ok": sum(1 for r in s["per_run"] if "single_right" in r), "runs": s["runs"]}}
+
+
+def _real(entry: dict, tmp: str) -> dict:
+    from benchmarks.validation import real_corpus as rc
+
+    if not (ROOT / entry["file"]).exists():
+        return {"missing": True, "where": entry["file"]}
+    e = {k: v for k, v in entry.items() if k != "index"}
+    res = rc.independent(e)
+    j = rc.run_jaxdrift(e, res, tmp)
+    ch = j.get("checks", {})
+    right = bool(ch.get("ran")) and ch.get("clear_named") == ch.get("clear") and not ch.get("absurd") \
+        and (ch.get("noise_check") is None or ch["noise_check"]["ok"])
+    return {"where": entry["file"], "real": {"right": right, "exit": j.get("exit"), "needs_force": j.get("needs_force"),
+                                             "clear": ch.get("clear"), "clear_named": ch.get("clear_named"),
+                                             "absurd": ch.get("absurd"), "noise_ok": (ch.get("noise_check") or {}).get("ok"),
+                                             "reference_inconsistent": ch.get("reference_inconsistent"),
+                                             "causes": ch.get("causes")}}
+
+
+# ----------------------------------------------------------------------------------- scoring
+def _target(d: dict) -> tuple:
+    for k in ("channel", "parameter", "sensor"):
+        if d.get(k) is not None:
+            return d["cause"], str(d[k])
+    return d["cause"], ""
+
+
+def score_run(kind: str, rec: dict) -> dict:
+    """The uniform measures of one generated run (``sweep.score`` for order and coverage)."""
+    from benchmarks.validation.sweep import NOISE, SYSTEMATIC, _as_truth, score
+
+    sysc = SYSTEMATIC[kind]
+    findings = rec["findings"]
+    s = score(kind, rec["truth"], findings)
+    truth = [_target(e) for e in rec["truth"] if e["cause"] in sysc]
+    out = {"n_systematic": len(truth)}
+    if truth:
+        out["right"] = bool(s.get("right"))
+        out["confirmed"] = bool(s.get("right") and s.get("right_all_confirmed") is not False)
+    else:
+        out["false_alarm"] = bool(s.get("false_alarm"))
+    extra = []
+    for f in findings:
+        if f["cause"] not in sysc or f.get("confirmed") is False:
+            continue
+        t = _as_truth(f, truth)
+        alts = {_target(a) for a in f.get("indistinguishable_from") or []}
+        if t not in truth and not (alts & set(truth)):
+            extra.append(f"{t[0]}{':' + t[1] if t[1] else ''}={f.get('estimate')}")
+    out["extra_confirmed"] = extra
+    cov = {}
+    for c in s["coverage"]:
+        k = c["target"].split(":")[0]
+        if k in NOISE[kind]:
+            k += "/" + str(c.get("estimate_kind") or "not reported")
+        cov[k] = c["covered"]
+    out["coverage"] = cov
+    out["reference_flags"] = sum(f["cause"] == "reference_inconsistent" for f in findings)
+    return out
+
+
+def _rate(k, n):
+    return None if not n else round(k / n, 4)
+
+
+def score_world(world: World, recs: list[dict]) -> dict:
+    """The world's measures over its records (counts with their n)."""
+    done = [r for r in recs if "error" not in r and not r.get("missing")]
+    out = {"world": world.name, "runs": len(recs), "errors": sum("error" in r for r in recs),
+           "missing": sum(bool(r.get("missing")) for r in recs),
+           "seconds_per_run": round(statistics.median([r["wall_s"] for r in done]), 1) if done else None}
+    if world.kind == "real":
+        k = sum(r["real"]["right"] for r in done)
+        out["right_first"] = {"k": k, "n": len(done)}
+        out["reference_flags"] = {"k": sum(bool(r["real"].get("reference_inconsistent")) for r in done), "n": len(done)}
+        out["misses"] = [f"{r['where']}: {r['real']}" for r in done if not r["real"]["right"]] + \
+            [f"{r['where']}: ERROR {r['error']}" for r in recs if "error" in r]
+        return out
+    if world.kind == "campaign":
+        sh = [p for r in done for p in r["campaign"]["shared"]]
+        out["right_first"] = {"k": sum(all(p["contains_truth"] for p in r["campaign"]["shared"]) for r in done), "n": len(done)}
+        out["coverage"] = {"parameter_error/joint": {"k": sum(p["contains_truth"] for p in sh), "n": len(sh)}}
+        out["false_alarms"] = {"k": sum(bool(r["campaign"]["differs_alarms"]) for r in done), "n": len(done)}
+        out["extra_confirmed"] = {"k": sum(bool(r["campaign"]["extra_joint"]) for r in done), "n": len(done)}
+        out["misses"] = [f"campaign {r['index']} ({r['where']}): {r['campaign']}" for r in done
+                         if not all(p["contains_truth"] for p in r["campaign"]["shared"]) or r["campaign"]["differs_alarms"]
+                         or r["campaign"]["extra_joint"]] + [f"campaign {r['index']}: ERROR {r['error']}" for r in recs if "error" in r]
+        return out
+    scored = [(r, score_run(world.kind, r)) for r in done]
+    eff = [(r, s) for r, s in scored if s["n_systematic"]]
+    free = [(r, s) for r, s in scored if not s["n_systematic"]]
+    out["right_first"] = {"k": sum(s["right"] for _, s in eff), "n": len(eff)}
+    out["confirmed"] = {"k": sum(s["confirmed"] for _, s in eff), "n": len(eff)}
+    out["extra_confirmed"] = {"k": sum(bool(s["extra_confirmed"]) for _, s in scored), "n": len(scored)}
+    out["false_alarms"] = {"k": sum(s["false_alarm"] for _, s in free), "n": len(free)}
+    cov = defaultdict(lambda: [0, 0])
+    for _, s in scored:
+        for k, v in s["coverage"].items():
+            cov[k][0] += v
+            cov[k][1] += 1
+    out["coverage"] = {k: {"k": v[0], "n": v[1]} for k, v in sorted(cov.items())}
+    clean = [(r, s) for r, s in scored if r.get("clean_reference")]
+    out["reference_flags"] = {"k": sum(s["reference_flags"] > 0 for _, s in clean), "n": len(clean)}
+    misses = []
+    for r, s in scored:
+        why = []
+        if s.get("right") is False:
+            why.append("ORDER")
+        if s.get("false_alarm"):
+            why.append("FALSE ALARM")
+        if s["extra_confirmed"]:
+            why.append("EXTRA " + ", ".join(s["extra_confirmed"]))
+        bad = [k for k, v in s["coverage"].items() if not v]
+        if bad:
+            why.append("INTERVAL " + ", ".join(bad))
+        if r.get("clean_reference") and s["reference_flags"]:
+            why.append(f"REFERENCE FLAGS {s['reference_flags']}")
+        if why:
+            truth = ", ".join(f"{'%s:%s' % _target(e) if _target(e)[1] else e['cause']}={_fmt(e['value'])}" for e in r["truth"])
+            got = ", ".join(f"{'%s:%s' % _target(f) if _target(f)[1] else f['cause']}={_fmt(f.get('estimate'))}"
+                            for f in r["findings"][:4])
+            misses.append(f"run {r['index']} [{r['stratum']}] {r.get('where', '')}: truth {truth}; reported {got} -- "
+                          + "; ".join(why))
+    misses += [f"run {r['index']}: ERROR {r['error']}" for r in recs if "error" in r]
+    out["misses"] = misses
+    return out
+
+
+def _fmt(v):
+    if v is None:
+        return "-"
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
+    return f"{v:.4g}"
+
+
+# ----------------------------------------------------------------------------------- table, check
+GOOD = ("right_first", "confirmed")
+BAD = ("extra_confirmed", "false_alarms", "reference_flags")
+
+
+def _cell(m: dict | None) -> str:
+    return "-" if not m or not m["n"] else f"{m['k']}/{m['n']}"
+
+
+def table(card: dict) -> str:
+    L = ["| world | runs | right first | confirmed | extra confirmed | false alarms | false reference flags "
+         "| coverage by interval kind | s/run |", "|---|---|---|---|---|---|---|---|---|"]
+    for name, w in card["worlds"].items():
+        cov = ", ".join(f"{k} {_cell(v)}" for k, v in (w.get("coverage") or {}).items()) or "-"
+        runs = f"{w['runs']}" + (f" ({w['missing']} missing)" if w.get("missing") else "") + \
+            (f" ({w['errors']} errors)" if w.get("errors") else "")
+        L.append(f"| {name} | {runs} | {_cell(w.get('right_first'))} | {_cell(w.get('confirmed'))} | "
+                 f"{_cell(w.get('extra_confirmed'))} | {_cell(w.get('false_alarms'))} | {_cell(w.get('reference_flags'))} "
+                 f"| {cov} | {w.get('seconds_per_run') or '-'} |")
+    return "\n".join(L)
+
+
+def allowed(n: int, k_full: int, n_full: int) -> int:
+    """The one-sided 95 % binomial spread of a count over n runs at the full world's rate."""
+    p = (k_full + 1) / (n_full + 2)
+    return math.ceil(Z_ONE_SIDED * math.sqrt(n * p * (1 - p))) if n else 0
+
+
+def check(quick: dict, baseline: dict) -> list[str]:
+    """Measures of the quick card that fell beyond their noise against the baseline's quick card."""
+    fails = []
+    for name, w in quick["worlds"].items():
+        bq = baseline["quick" if quick.get("quick") else "full"]["worlds"].get(name)
+        bf = baseline["full"]["worlds"].get(name)
+        if not bq or not bf:
+            continue
+        pairs = [(m, w.get(m), bq.get(m), bf.get(m), m in BAD) for m in GOOD + BAD]
+        pairs += [(f"coverage {k}", v, (bq.get("coverage") or {}).get(k), (bf.get("coverage") or {}).get(k), False)
+                  for k, v in (w.get("coverage") or {}).items()]
+        for m, now, before, full, bad in pairs:
+            if not now or not before or not full or now["n"] != before["n"]:
+                continue
+            tol = allowed(now["n"], full["k"], full["n"])
+            if (now["k"] > before["k"] + tol) if bad else (now["k"] < before["k"] - tol):
+                fails.append(f"{name}: {m} {now['k']}/{now['n']} against the baseline's {before['k']}/{before['n']} "
+                             f"(noise allows {tol})")
+        if w.get("errors", 0) > bq.get("errors", 0):
+            fails.append(f"{name}: {w['errors']} runs failed with an error (baseline {bq.get('errors', 0)})")
+    return fails
+
+
+# ----------------------------------------------------------------------------------- main
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True,
+                              text=True, timeout=10).stdout.strip() or "?"
+    except Exception:  # noqa: BLE001
+        return "?"
+
+
+def _dirty() -> bool:
+    try:
+        return bool(subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "jaxdrift"],
+                                   capture_output=True, text=True, timeout=10).stdout.strip())
+    except Exception:  # noqa: BLE001
+        return False
+
+
+def run_card(worlds: list[World], *, quick: bool, jobs: int, cache: str, progress: bool = True) -> dict:
+    todo, have = [], defaultdict(list)
+    for w in worlds:
+        cs = cases(w)
+        if quick:
+            cs = cs[: w.quick] if w.kind != "real" else cs
+        for c in cs:
+            p = os.path.join(cache, w.name.replace("/", "__"), f"{c['index']:04d}.json")
+            if os.path.exists(p):
+                with open(p) as fh:
+                    have[w.name].append(json.load(fh))
+            else:
+                todo.append((w, c, p))
+    t0 = time.time()
+
+    def keep(w, p, rec):
+        os.makedirs(os.path.dirname(p), exist_ok=True)
+        with open(p + ".tmp", "w") as fh:
+            json.dump(rec, fh, default=float)
+        os.replace(p + ".tmp", p)
+        have[w.name].append(rec)
+        if progress:
+            verdict = rec.get("error") or ("missing" if rec.get("missing") else "done")
+            print(f"[{sum(map(len, have.values()))}/{sum(map(len, have.values())) + len(todo) - done[0]} "
+                  f"{time.time() - t0:.0f}s] {w.name} {rec['index']}: {verdict} ({rec['wall_s']:.1f}s)", flush=True)
+
+    done = [0]
+    if jobs <= 1:
+        for w, c, p in todo:
+            done[0] += 1
+            keep(w, p, run_case(w.name, c))
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
+            futs = {ex.submit(run_case, w.name, c): (w, p) for w, c, p in todo}
+            for f in as_completed(futs):
+                done[0] += 1
+                keep(*futs[f], f.result())
+    card = {"worlds": {}}
+    for w in worlds:
+        recs = sorted(have[w.name], key=lambda r: r["index"])
+        card["worlds"][w.name] = score_world(w, recs)
+    return card
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
+                                 formatter_class=argparse.RawDescriptionHelpFormatter, epilog=__doc__.split("\n\n", 1)[1])
+    ap.add_argument("--quick", action="store_true", help="the first cases of each generated world only (CI)")
+    ap.add_argument("--check", action="store_true", help="fail (exit 1) on a drop beyond noise against the baseline")
+    ap.add_argument("--baseline", default=str(RESULT), help=f"baseline JSON (default {RESULT.relative_to(ROOT)})")
+    ap.add_argument("--write-baseline", action="store_true", help="write the full card (and its quick subset) as the baseline")
+    ap.add_argument("--worlds", default=None, help="comma-separated world names (default: all); a prefix selects several")
+    ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
+    ap.add_argument("--cache", default=None, help="per-run cache folder (default out/scorecard-cache/<commit>)")
+    ap.add_argument("--json", default=None, help="write the card here")
+    a = ap.parse_args(argv)
+    worlds = WORLDS
+    if a.worlds:
+        pre = [x.strip() for x in a.worlds.split(",")]
+        worlds = [w for w in WORLDS if any(w.name == x or w.name.startswith(x) for x in pre)]
+        if not worlds:
+            ap.error(f"--worlds: none of {pre}; the worlds are {', '.join(BY_NAME)}")
+    commit = _commit() + ("+dirty" if _dirty() else "")
+    cache = a.cache or str(ROOT / "out" / "scorecard-cache" / commit)
+    t0 = time.time()
+    card = run_card(worlds, quick=a.quick, jobs=a.jobs, cache=cache)
+    card.update(commit=commit, quick=a.quick, wall_s=round(time.time() - t0, 1), seconds_note="wall time per run, "
+                f"{a.jobs} workers on {os.cpu_count()} cores")
+    print(table(card))
+    for name, w in card["worlds"].items():
+        for m in w.get("misses", []):
+            print(f"  {name}: {m}")
+    if a.write_baseline:
+        quick_card = run_card(worlds, quick=True, jobs=1, cache=cache, progress=False)
+        RESULT.parent.mkdir(parents=True, exist_ok=True)
+        from benchmarks._common import machine_info
+
+        doc = {"what": "benchmarks/scorecard.py: every world scored by one set of rules", "commit": commit,
+               "date": time.strftime("%Y-%m-%d"), "machine": machine_info(), "full": card, "quick": quick_card}
+        RESULT.write_text(json.dumps(doc, indent=1, default=float) + "\n")
+        print(f"baseline written: {RESULT.relative_to(ROOT)} at {commit}")
+    if a.json:
+        Path(a.json).write_text(json.dumps(card, indent=1, default=float) + "\n")
+    if a.check:
+        base = json.loads(Path(a.baseline).read_text())
+        fails = check(card, base)
+        print(f"\ncheck against the baseline of {base['commit']}: " + ("no world lower" if not fails else "LOWER"))
+        for f in fails:
+            print("  " + f)
+        return 1 if fails else 0
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
