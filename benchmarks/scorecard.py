@@ -388,6 +388,7 @@ def score_world(world: World, recs: list[dict]) -> dict:
         k = sum(r["real"]["right"] for r in done)
         out["right_first"] = {"k": k, "n": len(done)}
         out["reference_flags"] = {"k": sum(bool(r["real"].get("reference_inconsistent")) for r in done), "n": len(done)}
+        out["files"] = {r["where"]: r["real"]["right"] for r in done}
         out["misses"] = [f"{r['where']}: {r['real']}" for r in done if not r["real"]["right"]] + \
             [f"{r['where']}: ERROR {r['error']}" for r in recs if "error" in r]
         return out
@@ -489,12 +490,15 @@ def check(quick: dict, baseline: dict) -> list[str]:
         pairs += [(f"coverage {k}", v, (bq.get("coverage") or {}).get(k), (bf.get("coverage") or {}).get(k), False)
                   for k, v in (w.get("coverage") or {}).items()]
         for m, now, before, full, bad in pairs:
-            if not now or not before or not full or now["n"] != before["n"]:
+            if not now or not before or not full or now["n"] != before["n"] or w.get("files"):
                 continue
             tol = allowed(now["n"], full["k"], full["n"])
             if (now["k"] > before["k"] + tol) if bad else (now["k"] < before["k"] - tol):
                 fails.append(f"{name}: {m} {now['k']}/{now['n']} against the baseline's {before['k']}/{before['n']} "
                              f"(noise allows {tol})")
+        for f, ok in (w.get("files") or {}).items():  # a real recording is compared file by file
+            if bq.get("files", {}).get(f) and not ok:
+                fails.append(f"{name}: {f} no longer diagnosed right")
         if w.get("errors", 0) > bq.get("errors", 0):
             fails.append(f"{name}: {w['errors']} runs failed with an error (baseline {bq.get('errors', 0)})")
     return fails
