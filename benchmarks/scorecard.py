@@ -513,6 +513,15 @@ def _commit() -> str:
         return "?"
 
 
+def _library_commit() -> str:
+    """The last commit that changed the library: the diagnosis code that was measured."""
+    try:
+        return subprocess.run(["git", "-C", str(ROOT), "log", "-1", "--format=%h", "--", "jaxdrift"],
+                              capture_output=True, text=True, timeout=10).stdout.strip() or "?"
+    except Exception:  # noqa: BLE001
+        return "?"
+
+
 def _dirty() -> bool:
     try:
         return bool(subprocess.run(["git", "-C", str(ROOT), "status", "--porcelain", "--", "jaxdrift"],
@@ -590,7 +599,7 @@ def main(argv=None) -> int:
     cache = a.cache or str(ROOT / "out" / "scorecard-cache" / commit)
     t0 = time.time()
     card = run_card(worlds, quick=a.quick, jobs=a.jobs, cache=cache)
-    card.update(commit=commit, quick=a.quick, wall_s=round(time.time() - t0, 1), seconds_note="wall time per run, "
+    card.update(commit=commit, library_commit=_library_commit(), quick=a.quick, wall_s=round(time.time() - t0, 1), seconds_note="wall time per run, "
                 f"{a.jobs} workers on {os.cpu_count()} cores")
     print(table(card))
     for name, w in card["worlds"].items():
@@ -602,6 +611,7 @@ def main(argv=None) -> int:
         from benchmarks._common import machine_info
 
         doc = {"what": "benchmarks/scorecard.py: every world scored by one set of rules", "commit": commit,
+               "library_commit": card["library_commit"],
                "date": time.strftime("%Y-%m-%d"), "machine": machine_info(), "full": card, "quick": quick_card}
         RESULT.write_text(json.dumps(doc, indent=1, default=float) + "\n")
         print(f"baseline written: {RESULT.relative_to(ROOT)} at {commit}")
