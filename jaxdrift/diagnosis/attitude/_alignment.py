@@ -9,6 +9,10 @@ reference and the bias fit as noise.
 :func:`alignment_step` estimates, from the reference's own rates (the rotation between consecutive
 reference samples over their step, at the step's midpoint) and the gyro's:
 
+The reference's rate over a span is its rotation over the span, compared with the gyro's mean rate
+over the same span (the gyro's integral), so that a reference at 1 Hz is compared with what the gyro
+says of the same second, not with its rate at one instant.
+
 1. the **clock offset** tau (the reference's stamps late by tau): the lag that best matches the rate
    magnitudes (the reference's rates over spans of :data:`SPAN_S`), which no frame rotation changes (a grid search over +-:data:`MAX_OFFSET_S`, or half a reference step where that is longer, at a quarter
    of the gyro's step, refined by a parabola);
@@ -17,8 +21,9 @@ reference samples over their step, at the step's midpoint) and the gyro's:
 
 each with a 95 % interval from :data:`N_BLOCKS` time blocks (the spread of the block estimates over
 sqrt(blocks)). Both are applied (the reference re-stamped and turned into the gyro's frame) where
-they are significant (beyond :data:`Z_APPLY` standard errors) and beyond :data:`MIN_OFFSET_STEPS` of the gyro's
-step or :data:`MIN_ANGLE_DEG`; the report's ``run.reference_alignment`` says what was found and
+they are significant (beyond :data:`Z_APPLY` standard errors), beyond :data:`MIN_OFFSET_STEPS` of the gyro's
+step or :data:`MIN_ANGLE_DEG`, and hold out of sample (in every time block, the value the other
+blocks found fits better than none: a reference consistent as given is never turned); the report's ``run.reference_alignment`` says what was found and
 whether it was applied. A reference that hardly turns tells neither: nothing is applied then. Where
 the rotation is not determined (a body turned about one axis) but a signed permutation of the
 axes fits the rates with less than half the identity's misfit (an IMU mounted with its x pointing
@@ -62,40 +67,56 @@ def _wxyz(q):
 
 def _ref_rates(tq, q, span):
     """Body rates over consecutive reference samples ``span`` apart (a motion-capture attitude
-    differenced sample by sample is mostly its own noise): (t mid, w), spans without a gap."""
+    differenced sample by sample is mostly its own noise): (start, end, w), spans without a gap. The
+    rate is the span's mean (its rotation over its length): at a 1 Hz reference it is compared with
+    the gyro's mean over the same span, never with the gyro at one instant."""
     med = np.median(np.diff(tq))
     a = np.arange(0, len(tq) - span, span)
     b = a + span
     d = tq[b] - tq[a]
     ok = (d > 0) & (d <= (span + 0.5) * med)
     a, b, d = a[ok], b[ok], d[ok]
-    return 0.5 * (tq[a] + tq[b]), quat_log_np(quat_multiply_np(quat_conjugate_np(q[a]), q[b])) / d[:, None]
+    return tq[a], tq[b], quat_log_np(quat_multiply_np(quat_conjugate_np(q[a]), q[b])) / d[:, None]
 
 
-def _gyro_at(t_grid, w, t):
+def _gyro_integral(t_grid, w):
+    """(times, cumulative integral) of the gyro rates, each sample the rate at its stamp (as the
+    clock offset has always been read: a sample held over a step would lag half a step), by the
+    trapezoid rule; linear between the samples, so it interpolates at any instant."""
     fin = np.isfinite(w).all(1)
     tg, wg = t_grid[fin], w[fin]
-    out = np.column_stack([np.interp(t, tg, wg[:, c], left=np.nan, right=np.nan) for c in range(3)])
+    steps = np.diff(tg)[:, None] * 0.5 * (wg[:-1] + wg[1:])
+    return tg, np.vstack([np.zeros((1, 3)), np.cumsum(steps, 0)])
+
+
+def _gyro_mean(integral, ta, tb):
+    """The gyro's mean rate over [ta, tb] (NaN where the span leaves the gyro's record)."""
+    tg, C = integral
+    out = np.full((len(ta), 3), np.nan)
+    inside = (ta >= tg[0]) & (tb <= tg[-1]) & (tb > ta)
+    for c in range(3):
+        out[inside, c] = (np.interp(tb[inside], tg, C[:, c]) - np.interp(ta[inside], tg, C[:, c])) / (tb - ta)[inside]
     return out
 
 
-def _offset(t_grid, w, tm, wb, dt, reach=MAX_OFFSET_S):
+def _offset_cost(integral, ta, tb, nb, tau):
+    """Mean squared mismatch of the rate magnitudes at a clock offset ``tau``."""
+    g = np.linalg.norm(_gyro_mean(integral, ta - tau, tb - tau), axis=1)
+    m = np.isfinite(g)
+    return float(np.mean((g[m] - nb[m]) ** 2)) if m.sum() > 10 else np.inf
+
+
+def _offset(integral, ta, tb, wb, dt, reach=MAX_OFFSET_S):
     """Clock offset minimising the rate magnitudes' mismatch, searched over +-``reach``."""
     nb = np.linalg.norm(wb, axis=1)
     taus = np.arange(-reach, reach + 1e-12, max(dt / 4.0, reach / 400.0))
-
-    def cost(tau):
-        g = np.linalg.norm(_gyro_at(t_grid, w, tm - tau), axis=1)
-        m = np.isfinite(g)
-        return float(np.mean((g[m] - nb[m]) ** 2)) if m.sum() > 10 else np.inf
-
-    c = np.array([cost(x) for x in taus])
+    c = np.array([_offset_cost(integral, ta, tb, nb, x) for x in taus])
     k = int(np.argmin(c))
     if 0 < k < len(taus) - 1 and np.all(np.isfinite(c[k - 1 : k + 2])):
         a, b, cc = c[k - 1], c[k], c[k + 1]
         den = a - 2 * b + cc
         shift = 0.5 * (a - cc) / den if den > 0 else 0.0
-        return float(taus[k] + np.clip(shift, -1, 1) * dt / 4.0)
+        return float(taus[k] + np.clip(shift, -1, 1) * (taus[1] - taus[0]))
     return float(taus[k])
 
 
@@ -153,6 +174,36 @@ def _rotation(wg, wb):
     return rot.as_matrix()
 
 
+def _offset_holds_out(integral, ta, tb, wb, taus, blocks) -> bool:
+    """A clock offset is applied only where it predicts: in every time block, the offset the other
+    blocks found matches the block's rate magnitudes better than no offset (a sign test with 1
+    chance in 2^10 for an offset that tells nothing, as at a 1 Hz reference on a slow body)."""
+    nb = np.linalg.norm(wb, axis=1)
+    for i, b in enumerate(blocks):
+        other = float(np.mean(np.delete(taus, i)))
+        if not _offset_cost(integral, ta[b], tb[b], nb[b], other) < _offset_cost(integral, ta[b], tb[b], nb[b], 0.0):
+            return False
+    return True
+
+
+def _rotation_holds_out(wg, wb, blocks) -> bool:
+    """A frame rotation is applied only where it predicts: in every time block, the rotation fitted
+    on the other blocks matches the block's rates better than the frames as given. A reference
+    consistent as given is never turned (a fitted rotation always beats the identity on the data
+    it was fitted to, by the noise it absorbs)."""
+    m = np.isfinite(wg).all(1) & np.isfinite(wb).all(1)
+    for i, b in enumerate(blocks):
+        rest = np.concatenate([x for j, x in enumerate(blocks) if j != i])
+        rest, b = rest[m[rest]], b[m[b]]
+        if len(b) < 3 or len(rest) < 10:
+            return False
+        R = _rotation(wg[rest], wb[rest])
+        a, c = wg[b] - np.mean(wg[b], 0), wb[b] - np.mean(wb[b], 0)
+        if not np.sum((a - c @ R.T) ** 2) < np.sum((a - c) ** 2):
+            return False
+    return True
+
+
 def alignment_step(run) -> Alignment:
     """Estimate (and where significant, apply) the reference's clock offset and frame rotation: the
     :class:`._records.Alignment` (``alignment`` the report's ``run.reference_alignment``; ``run`` a
@@ -166,17 +217,20 @@ def alignment_step(run) -> Alignment:
     dt, w = run["dt"], run["w"]
     # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
     span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
-    tm, wb = _ref_rates(tq, q, span)
-    if len(tm) < 10 * N_BLOCKS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
+    ta, tb, wb = _ref_rates(tq, q, span)
+    if len(ta) < 10 * N_BLOCKS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
         return Alignment(None, run)
+    integral = _gyro_integral(run["t"], w)
     # a GNSS heading at 1 Hz lags its gyro by a few tenths of a second: the search spans half a
     # reference step at least
     reach = max(MAX_OFFSET_S, 0.5 * float(np.median(np.diff(tq))))
-    tau = _offset(run["t"], w, tm, wb, dt, reach)
-    blocks = np.array_split(np.arange(len(tm)), N_BLOCKS)
-    taus = np.array([_offset(run["t"], w, tm[b], wb[b], dt, reach) for b in blocks])
+    tau = _offset(integral, ta, tb, wb, dt, reach)
+    blocks = np.array_split(np.arange(len(ta)), N_BLOCKS)
+    taus = np.array([_offset(integral, ta[b], tb[b], wb[b], dt, reach) for b in blocks])
     tau_se = float(np.std(taus, ddof=1) / math.sqrt(N_BLOCKS))
-    wg = _gyro_at(run["t"], w, tm - tau)
+    use_tau = abs(tau) > Z_APPLY * tau_se and abs(tau) > MIN_OFFSET_STEPS * dt and \
+        _offset_holds_out(integral, ta, tb, wb, taus, blocks)
+    wg = _gyro_mean(integral, ta - (tau if use_tau else 0.0), tb - (tau if use_tau else 0.0))
     Rm = _rotation(wg, wb)
     rv = Rotation.from_matrix(Rm).as_rotvec()
     rvs = np.array([Rotation.from_matrix(_rotation(wg[b], wb[b])).as_rotvec() for b in blocks])
@@ -184,8 +238,8 @@ def alignment_step(run) -> Alignment:
     angle = float(np.linalg.norm(rv))
     angle_se = float(np.sqrt(np.sum((rv / max(angle, 1e-300)) ** 2 * rv_se**2))) if angle > 0 else float(np.linalg.norm(rv_se))
     z = 1.96
-    use_tau = abs(tau) > Z_APPLY * tau_se and abs(tau) > MIN_OFFSET_STEPS * dt
-    use_rot = angle > Z_APPLY * angle_se and math.degrees(angle) > MIN_ANGLE_DEG
+    use_rot = angle > Z_APPLY * angle_se and math.degrees(angle) > MIN_ANGLE_DEG and \
+        _rotation_holds_out(wg, wb, blocks)
     convention = None
     if run.get("heading_only"):
         # a heading tells no frame but the vertical's sense (a compass heading turns clockwise

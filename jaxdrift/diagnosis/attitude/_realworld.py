@@ -320,22 +320,43 @@ def gap_mask(run, anchors):
     return ok
 
 
-def inconsistent_findings(spans, use):
-    """``reference_inconsistent`` findings (ranked first: every other finding depends on the reference)."""
-    out = []
+def inconsistent_findings(spans, use, duration=None):
+    """One ``reference_inconsistent`` finding that sums up every span where the reference is
+    inconsistent with the gyro (how many stretches, on which axes, how much of the run, left out of
+    the gyro fit), ranked after the gyro's causes: it says what was left out, the causes say what
+    is wrong with the gyro. ``spans`` holds each stretch (axis, span, kind, rate). Empty where none."""
+    if not spans:
+        return []
+    parts = []
     for sp in spans:
         if sp["kind"] == "jumps":
-            what = (f"the reference jumps about the global {sp['axis']} axis at t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s "
-                    f"({fmt(sp['rate'])} rad/s more than the gyro over one interval: a reset)")
+            parts.append(f"jumps about {sp['axis']} at t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s ({fmt(sp['rate'])} rad/s "
+                         "over one interval: a reset)")
         else:
-            what = (f"the reference turns about the global {sp['axis']} axis over t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s "
-                    f"while the gyro says the body is still (up to {fmt(sp['rate'])} rad/s; an estimator still "
-                    f"converging, a heading reset)")
-        f = {"cause": REFERENCE_INCONSISTENT.name, "axis": sp["axis"], "span_s": [sp["t0"], sp["t1"]],
-             "estimate": sp["rate"], "unit": REFERENCE_INCONSISTENT.unit, "interval": None,
-             "evidence": what + f"; left out of the gyro fit on that axis ({int((~use).sum())} interval-axis cells in all)"}
-        out.append((f, 1e9 - len(out)))
-    return out
+            parts.append(f"turns about {sp['axis']} over t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s while the gyro says "
+                         f"the body is still (up to {fmt(sp['rate'])} rad/s)")
+    covered = sorted((sp["t0"], sp["t1"]) for sp in spans)
+    total, (a, b) = 0.0, covered[0]
+    for x, y in covered[1:]:  # the union of the stretches, whatever the axes
+        if x > b:
+            total, a, b = total + (b - a), x, y
+        else:
+            b = max(b, y)
+    total += b - a
+    axes = sorted({sp["axis"] for sp in spans})
+    share = f" ({fmt(100.0 * total / duration)} % of the run)" if duration else ""
+    what = (f"the reference is inconsistent with the gyro on {len(spans)} stretch(es) about the global "
+            f"{', '.join(axes)} axis, {fmt(total)} s in all{share}; left out of the gyro fit there "
+            f"({int((~use).sum())} interval-axis cells; an estimator still converging, a heading reset): "
+            + "; ".join(parts[:5]) + ("; ..." if len(parts) > 5 else ""))
+    f = {"cause": REFERENCE_INCONSISTENT.name, "axis": ",".join(axes),
+         "span_s": [float(min(sp["t0"] for sp in spans)), float(max(sp["t1"] for sp in spans))],
+         "estimate": float(max(sp["rate"] for sp in spans)), "unit": REFERENCE_INCONSISTENT.unit, "interval": None,
+         "evidence": what, "spans": [{"axis": sp["axis"], "span_s": [sp["t0"], sp["t1"]], "rate": sp["rate"],
+                                      "kind": "reset" if sp["kind"] == "jumps" else "turns while the gyro says still"}
+                                     for sp in spans],
+         "left_out_s": float(total)}
+    return [(f, 0.0)]
 
 
 def split_spikes(spans):
