@@ -365,6 +365,9 @@ def score_run(kind: str, rec: dict) -> dict:
     out["extra_confirmed"] = extra
     cov = {}
     for c in s["coverage"]:
+        if c["interval"] is None and isinstance(c["estimate"], (int, float)) and isinstance(c["true"], (int, float)):
+            # a value read exactly (a clipped channel's range): covered where it is the truth to 1e-5
+            c["covered"] = abs(c["estimate"] - c["true"]) <= 1e-5 * max(abs(c["true"]), 1e-12)
         k = c["target"].split(":")[0]
         if k in NOISE[kind]:
             k += "/" + str(c.get("estimate_kind") or "not reported")
