@@ -262,3 +262,32 @@ def test_a_true_damper_error_in_a_run_with_a_quiet_half_is_kept():
     log: list = []
     _, dropped = confirm_corrections(prob, gate_truth.true_selection(prob, full["effects"]), log)
     assert dropped == [], log
+
+
+def test_confirmation_asks_for_a_share_of_the_residual_and_a_size_that_matters():
+    """The rules beside the halves check (``_confirm.failure``): a correction that explains almost
+    nothing of its channel's residual is 'a small unexplained residual', not a cause; a parameter
+    within half a percent of the model and a delay of a fraction of a sample are no findings to act
+    on; a correction of a real effect passes all three."""
+    from types import SimpleNamespace
+
+    from jaxdrift.diagnosis.vehicle._causes import FORCE_DELAY, PARAMETER_ERROR
+    from jaxdrift.diagnosis.vehicle._confirm import SHARE_MIN, explained, failure
+
+    pipe = SimpleNamespace(h=1e-3)
+    spring, delay = SimpleNamespace(kind=PARAMETER_ERROR), SimpleNamespace(kind=FORCE_DELAY)
+
+    def imp(without, with_):
+        return {"without": without, "with": with_, "whole_t": 5.0, "halves_t": [3.0, 3.0]}
+
+    # the baseline's m3 x 1.051 that explained nothing: 36.58 -> 36.58
+    assert failure(imp(36.58, 36.58), spring, 0.051, pipe) == "share"
+    # a true 4 % damper in a quiet run explains 0.32 of what it leaves (test above): confirmed
+    assert explained(imp(1.622, 1.543)) > SHARE_MIN and failure(imp(1.622, 1.543), spring, -0.041, pipe) is None
+    # k3 x 1.001 explaining much: still within the margin
+    assert failure(imp(10.91, 8.11), spring, 0.001, pipe) == "margin"
+    # a 34 us delay at 1 kHz (0.034 samples) is no finding; a 0.2 ms one is
+    assert failure(imp(3.5, 2.7), delay, 34e-6, pipe) == "margin"
+    assert failure(imp(3.5, 2.7), delay, 2e-4, pipe) is None
+    # a clear loss is still the halves check's
+    assert failure({**imp(3.0, 2.0), "whole_t": -5.0}, spring, 0.05, pipe) == "halves"

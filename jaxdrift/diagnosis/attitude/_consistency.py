@@ -41,9 +41,9 @@ from ...models._quaternion import (
     rotation_matrix_np,
 )
 from .._diffnoise import mad_sigma
-from ._gyro import convention_terms
+from ._gyro import convention_terms, reference_fit
 
-__all__ = ["interval_rates", "consistency", "still_rows", "AXES",
+__all__ = ["interval_rates", "consistency", "rejudge", "still_rows", "RECHECK_SCALE_SE", "RECHECK_CHI2", "AXES",
            "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "SPIKE_SPAN", "WINDOW_S"]
 
 AXES = ("x", "y", "z")
@@ -53,6 +53,11 @@ STILL_REF = 0.02  # rad/s: a reference rate below this is "the reference says th
 REF_DEV = 0.005  # rad/s: a reference that turns this much faster than the gyro while still is inconsistent
 REF_JUMP = 0.05  # rad/s over one interval, and 10 robust standard deviations: a jump (reset)
 SPIKE_SPAN = 5  # intervals each side over which a jump that comes back is an outlier, not a reset
+#: the reference is judged again against the gyro corrected by the fit where the fit's scale is known
+#: this well (standard error), and cells are given back only where the fit's chi-square per degree
+#: of freedom grows by less than this factor with them
+RECHECK_SCALE_SE = 0.01
+RECHECK_CHI2 = 1.5
 
 
 def interval_rates(w, dt, q_ref, anchors, lam=0.0):
@@ -210,3 +215,53 @@ def still_rows(n, anchors, still_int):
     for i in np.nonzero(still_int)[0]:
         m[anchors[i] : anchors[i + 1]] = True
     return m
+
+
+def corrected_rates(run, fit, int_seg, anchors):
+    """The rates with a reference fit's piecewise biases taken off and its scales divided out,
+    where the fit determines them (a bias whose standard error is under a fifth of
+    :data:`REF_DEV`, a scale under :data:`RECHECK_SCALE_SE`; the rest left as measured, so that a
+    bias the flagged cells alone would tell cannot absorb the reference's own turn). Rows outside
+    the anchors take the nearest segment's bias."""
+    theta, offs, cov = fit["theta"], fit["offs"], fit["cov"]
+    sc = int(offs[-1])
+    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
+    th = np.where(se[: sc + 3] < np.r_[np.full(sc, 0.2 * REF_DEV), np.full(3, RECHECK_SCALE_SE)], theta[: sc + 3],
+                  np.r_[np.zeros(sc), np.ones(3)])
+    w = np.array(run["w"], float)
+    rows = np.arange(len(w))
+    int_of_row = np.clip(np.searchsorted(anchors, rows, side="right") - 1, 0, len(int_seg) - 1)
+    b = np.stack([th[offs[c] + int_seg[int_of_row]] for c in range(3)], 1)
+    return (w - b) / th[sc : sc + 3]
+
+
+def rejudge(run, fit0, use, spans, spikes, valid, int_seg, anchors, var_rate, sample_var, lam_recheck):
+    """The reference judged again against the gyro as the first fit corrects it (its
+    well-determined bias and scale, :func:`corrected_rates`): a gyro bias rotated into the global
+    frame by a slow turn, or a scale on a turn the gyro calls still, moves the discrepancy as an
+    inconsistent reference would. Cells may only be given back, and only where the refit with them
+    keeps its chi-square per degree of freedom within :data:`RECHECK_CHI2` of the first fit's;
+    twice at most. Returns (use, spans, spikes, fit, notes)."""
+    from ._realworld import heading_only_cells, split_spikes
+
+    notes = []
+    lam = fit0["lam"] if abs(fit0["lam"]) > lam_recheck else 0.0
+    for _ in range(2):
+        if use.all():
+            break
+        use2, spans2, _ = consistency(corrected_rates(run, fit0, int_seg, anchors), run["dt"], run["q_ref"], anchors,
+                                      run["t"], valid, lam=lam)
+        use2 &= valid[:, None] & (use | ~use2)  # the correction may only give cells back
+        spans2, spikes2 = split_spikes(spans2)
+        if run.get("heading_only"):
+            use2, spans2 = heading_only_cells(use2, spans2)
+        if np.array_equal(use2, use):
+            break
+        fit2 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use2)
+        if fit2["chi2"] / max(fit2["dof"], 1) > RECHECK_CHI2 * fit0["chi2"] / max(fit0["dof"], 1):
+            break  # the cells given back do not fit the gyro's effects: the reference is inconsistent there
+        notes.append(f"the reference judged again against the gyro corrected for its fitted bias and scale: "
+                     f"{len(spans)} inconsistent span(s) before, {len(spans2)} after "
+                     f"({int(np.sum(use2 & ~use))} interval-axis cells given back to the fit)")
+        use, spans, spikes, fit0 = use2, spans2, spikes2, fit2
+    return use, spans, spikes, fit0, notes

@@ -40,7 +40,7 @@ from ...models._quaternion import (
 )
 from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE, gyro_inverse
 from ._array import array_step
-from ._consistency import consistency, still_rows
+from ._consistency import consistency, rejudge, still_rows
 from ._realworld import (
     degenerate,
     finite_segments,
@@ -79,11 +79,6 @@ __all__ = ["diagnose_attitude", "diagnose_records"]
 
 #: a fitted sampling convention further than this from "held" (0) has the reference checked again in it
 LAM_RECHECK = 0.2
-#: the reference is judged again against the gyro corrected by the fit where the fit's scale is known
-#: this well (standard error), and cells given back only where the fit's chi-square per degree of
-#: freedom grows by less than this factor with them
-RECHECK_SCALE_SE = 0.01
-RECHECK_CHI2 = 1.5
 
 #: the diagnosis takes a run split by gaps whole and analyses its segments jointly (integration
 #: restarts at each segment; the reference intervals across a gap are left out)
@@ -236,30 +231,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
             if run.get("heading_only"):
                 use, ref_spans = heading_only_cells(use, ref_spans)
             fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
-    # the reference is judged against the gyro as the fit corrects it: a gyro bias rotated into the
-    # global frame by a slow turn, or a scale on a turn the gyro calls still, moves the discrepancy
-    # as an inconsistent reference would. Cells flagged only because of the gyro's own effects are
-    # given back to the fit (twice at most: the corrected fit may free more)
-    lam_check = fit0["lam"] if abs(fit0["lam"]) > LAM_RECHECK else 0.0
-    for _ in range(2):
-        if use.all():
-            break
-        use2, spans2, still2 = consistency(_corrected_rates(run, fit0, int_seg, anchors), dt, q_ref, anchors, t,
-                                           valid, lam=lam_check)
-        use2 &= valid[:, None] & (use | ~use2)  # the correction may only give cells back
-        spans2, spikes2 = split_spikes(spans2)
-        if run.get("heading_only"):
-            use2, spans2 = heading_only_cells(use2, spans2)
-        if np.array_equal(use2, use):
-            break
-        fit2 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use2)
-        if fit2["chi2"] / max(fit2["dof"], 1) > RECHECK_CHI2 * fit0["chi2"] / max(fit0["dof"], 1):
-            break  # the cells given back do not fit the gyro's effects: the reference is inconsistent there
-        freed = int(np.sum(use2 & ~use))
-        notes.append(f"the reference judged again against the gyro corrected for its fitted bias and scale: "
-                     f"{len(ref_spans)} inconsistent span(s) before, {len(spans2)} after ({freed} interval-axis "
-                     "cells given back to the fit)")
-        use, ref_spans, spikes, still_int, fit0 = use2, spans2, spikes2, still2, fit2
+    # the reference is judged again against the gyro as the fit corrects it (:func:`._consistency.rejudge`)
+    use, ref_spans, spikes, fit0, said_again = rejudge(run, fit0, use, ref_spans, spikes, valid, int_seg, anchors,
+                                                      var_rate, sample_var, LAM_RECHECK)
+    notes += said_again
     if noise.finding is not None and noise.finding["estimate_kind"] == "upper_bound" or not noise.found:
         # the weights came from a noise level that may hold true motion (vibration): the residuals
         # between reference rows say how large the noise is in the band the fit uses
@@ -331,26 +306,6 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
     comp = _reference_attitude_error(run, noise.segments, ref_spans, model, n_ref, ref_rows, fit["lam"])
     said = Said(tuple(notes), tuple(observed), tuple(not_observed)) + said + comp.said
     return replace(comp, findings=tuple(findings), said=said), replace(noise, var_rate=var_rate)
-
-
-def _corrected_rates(run, fit, int_seg, anchors):
-    """The rates with a reference fit's piecewise biases taken off and its scales divided out,
-    where the fit determines them (a bias whose standard error is under a fifth of
-    :data:`._consistency.REF_DEV`, a scale under :data:`RECHECK_SCALE_SE`; the rest left as
-    measured, so that a bias the flagged cells alone would tell cannot absorb the reference's own
-    turn). Rows outside the anchors take the nearest segment's bias."""
-    from ._consistency import REF_DEV
-
-    theta, offs, cov = fit["theta"], fit["offs"], fit["cov"]
-    sc = int(offs[-1])
-    se = np.sqrt(np.maximum(np.diag(cov), 0.0))
-    th = np.where(se[: sc + 3] < np.r_[np.full(sc, 0.2 * REF_DEV), np.full(3, RECHECK_SCALE_SE)], theta[: sc + 3],
-                  np.r_[np.zeros(sc), np.ones(3)])
-    w = np.array(run["w"], float)
-    rows = np.arange(len(w))
-    int_of_row = np.clip(np.searchsorted(anchors, rows, side="right") - 1, 0, len(int_seg) - 1)
-    b = np.stack([th[offs[c] + int_seg[int_of_row]] for c in range(3)], 1)
-    return (w - b) / th[sc : sc + 3]
 
 
 def _bias_idx(fit, channels):

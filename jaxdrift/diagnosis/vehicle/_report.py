@@ -383,11 +383,22 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
     for c, est, imp in held_out:
         (a1, b1), (a2, b2) = imp["halves"]
         t1, t2 = imp["halves_t"]
-        reasons[c] = (f"not confirmed, left out of the extended model: corrected, the {imp['channel']} "
-                      f"residual's RMS goes {imp['without']:.4g} -> {imp['with']:.4g} on the whole run, "
-                      f"{a1:.4g} -> {b1:.4g} on the first half and {a2:.4g} -> {b2:.4g} on the second "
-                      f"(drops of {imp['whole_t']:.2g}, {t1:.2g} and {t2:.2g} standard errors): clearly higher "
-                      f"on the whole run or on a half")
+        why = imp.get("failed", "halves")
+        if why == "share":
+            reasons[c] = (f"not confirmed, left out of the extended model: a small unexplained residual, not a "
+                          f"cause: corrected, the {imp['channel']} residual's RMS goes {imp['without']:.4g} -> "
+                          f"{imp['with']:.4g}, so it explains {math.sqrt(max(imp['without'] ** 2 - imp['with'] ** 2, 0)):.3g} "
+                          f"({100 * imp['explained']:.0f} % of what is left, the comparison's noise and error "
+                          f"among it); a confirmed cause explains at least as much as it leaves")
+        elif why == "margin":
+            reasons[c] = (f"not confirmed, left out of the extended model: its size is within {imp['margin']:.3g} "
+                          f"({c.kind.unit}) of no effect, a difference no engineer would act on")
+        else:
+            reasons[c] = (f"not confirmed, left out of the extended model: corrected, the {imp['channel']} "
+                          f"residual's RMS goes {imp['without']:.4g} -> {imp['with']:.4g} on the whole run, "
+                          f"{a1:.4g} -> {b1:.4g} on the first half and {a2:.4g} -> {b2:.4g} on the second "
+                          f"(drops of {imp['whole_t']:.2g}, {t1:.2g} and {t2:.2g} standard errors): clearly higher "
+                          f"on the whole run or on a half")
     for c, est, ch, before, after, without in resim_out:
         what = {"beta": "pitch", "z3": "heave", "s1": "front spring travel", "s2": "rear spring travel"}[ch]
         unit = "rad" if ch == "beta" else "m"
