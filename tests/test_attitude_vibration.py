@@ -4,6 +4,8 @@ generator), with fixed seeds."""
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -108,3 +110,28 @@ def test_motion_capture_clock_and_frame_are_estimated_first(tmp_path, tau, angle
     for c, ch in enumerate(("wx", "wy")):
         assert abs(biases[ch]["estimate"] - BIAS[c]) < 0.25 * abs(BIAS[c]) or (
             biases[ch]["interval"][0] <= BIAS[c] <= biases[ch]["interval"][1]), biases[ch]
+
+
+def test_the_quietest_window_bound_holds_the_noise_it_could_have_missed():
+    """A gyro shaken everywhere by a 14 Hz line a little above its white noise (the independent
+    generator's vibration): the noise is an upper bound from the quietest window. That window is
+    the one whose noise read lowest, so the bound is the largest noise that could read that low in
+    the quietest of all windows (95 %): on 12 seeds it holds the true noise every time (the
+    quietest window's own level held it on 3 of 12)."""
+    from jaxdrift.diagnosis.attitude._pipeline import gyro_noise_step
+    from jaxdrift.diagnosis.attitude._vibration import vibration_step
+
+    dt, T, N = 0.004, 40.0, 2e-5
+    t = np.arange(0.0, T, dt)
+    held = 0
+    for seed in range(12):
+        rng = np.random.default_rng(5100 + seed)
+        vib = 3e-4 * np.sin(2 * np.pi * 14.0 * t[:, None] + rng.uniform(0, 2 * np.pi, 3))
+        w = 0.05 * np.sin(2 * np.pi * 0.1 * t)[:, None] + vib + rng.normal(0.0, N / math.sqrt(dt), (len(t), 3))
+        run = {"path": "synthetic", "t": t, "dt": dt, "w": w, "q_ref": None, "acc": None, "extra_columns": [],
+               "quantisation": 0.0, "acc_quantisation": 0.0, "warnings": [], "info": {}}
+        noise, _ = gyro_noise_step(run)
+        noise, v, _ = vibration_step(run, noise)
+        assert v is not None and noise.finding["estimate_kind"] == "upper_bound", noise.finding
+        held += noise.finding["interval"][1] >= N
+    assert held == 12

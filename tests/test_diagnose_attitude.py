@@ -389,7 +389,8 @@ def test_drift_without_white_noise(tmp_path):
     tr, rep = _diag(tmp_path, 132, rrw=(0.0, 0.0, 4e-4), **GYRO)
     first = rep["findings"][0]
     assert (first["cause"], first["channel"]) == ("gyro_bias_drift", "wz") and _inside(first, 4e-4)
-    assert all(f["cause"] != "gyro_noise" for f in rep["findings"])
+    # no noise is claimed; the reference's residuals may bound it (a detection limit, true of no noise)
+    assert all(f["cause"] != "gyro_noise" or f["estimate_kind"] == "upper_bound" for f in rep["findings"])
 
 
 # ----------------------------------------------------------------------------- array noise estimators

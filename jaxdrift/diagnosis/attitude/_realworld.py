@@ -31,7 +31,7 @@ from ._noise import (BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise, 
                      white_noise_recorded)
 
 __all__ = ["noise_kind_step", "degenerate", "gap_mask", "residual_noise_scale",
-           "inconsistent_findings", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
+           "inconsistent_findings", "residual_noise_bound", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
            "heading_error", "STILL_MIN_S"]
 
 STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estimate (and 256 rows)
@@ -264,6 +264,25 @@ def _noise_kind(run, noise, still, vib, by="the reference"):
         **f, "estimate_kind": "upper_bound", "interval": [0.0, hi],
         "evidence": (f"an upper bound, N <= {fmt(hi)} rad/sqrt(s): {why}, so the rates' high-frequency "
                      f"content may be true motion (vibration); " + f["evidence"])})
+
+
+def residual_noise_bound(fit, var_rate, n_int):
+    """Where the rates' differences never show a white noise (vibration or motion the samples
+    resolve), the reference still bounds it: the intervals' residuals hold the gyro's white noise
+    integrated over each interval, and besides it only what adds (the reference's own noise,
+    vibration's integration error, what the fit leaves): the 95 % upper limit of the noise density
+    they hold, ``var_rate chi2 / chi2_0.05(dof)``. None where the fit has no degrees of freedom."""
+    dof = float(fit["dof"])
+    if not dof >= 1 or not float(fit["chi2"]) > 0:
+        return None
+    N_hat = math.sqrt(var_rate * float(fit["chi2"]) / dof)
+    N_up = math.sqrt(var_rate * float(fit["chi2"]) / float(stats.chi2.ppf(0.05, dof)))
+    return {"cause": GYRO_NOISE.name, "estimate_kind": "upper_bound", "estimate": N_hat, "unit": GYRO_NOISE.unit,
+            "interval": [0.0, N_up],
+            "evidence": (f"an upper bound, N <= {fmt(N_up)} rad/sqrt(s), from the residuals between the reference "
+                         f"and the integrated gyro over {n_int} intervals ({fmt(N_hat)} rad/sqrt(s) if they held gyro "
+                         "noise alone): the rates' differences never turn white, so the noise is not separable "
+                         "from the motion sample by sample, and the residuals also hold the reference's own noise")}
 
 
 def residual_noise_scale(fit):

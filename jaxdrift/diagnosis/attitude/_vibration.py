@@ -32,6 +32,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+from scipy import stats
 
 from .._diffnoise import white_factor
 from ._causes import GYRO_NOISE, VIBRATION
@@ -171,12 +172,20 @@ def vibration_step(run, noise):
     else:
         N = quiet_level * math.sqrt(dt)
         var_rate = max(quiet_level**2 * dt, noise.floor**2 * dt, 1e-24)
+        # the quietest window is the one whose noise happened to read lowest: the largest white noise
+        # that could read that low in the quietest of len(win) windows at 95 % (Bonferroni over the
+        # windows; the level's variance over 3 axes of rows - k differences has the relative spread s)
+        s = math.sqrt(2.0 * math.comb(4 * k, 2 * k) / white_factor(k) ** 2 / max(3 * (rows - k), 1))
+        z = float(stats.norm.isf(0.05 / len(win)))
+        N_up = N / math.sqrt(max(1.0 - z * s, 0.05))
         finding = {
             "cause": GYRO_NOISE.name, "estimate_kind": "upper_bound", "estimate": N, "unit": GYRO_NOISE.unit,
-            "interval": [0.0, N],
-            "evidence": (f"an upper bound, N <= {fmt(N)} rad/sqrt(s) (the quietest {fmt(rows * dt)} s of the run): "
-                         f"the gyro vibrates {'everywhere' if not quiet.any() else 'almost everywhere'}, so no span "
-                         f"shows its white noise alone"),
+            "interval": [0.0, N_up],
+            "evidence": (f"an upper bound, N <= {fmt(N_up)} rad/sqrt(s): the quietest {fmt(rows * dt)} s of the run "
+                         f"read {fmt(N)}, and a white noise of up to {fmt(N_up)} could read that low in the quietest "
+                         f"of {len(win)} windows (95 %); the gyro vibrates "
+                         f"{'everywhere' if not quiet.any() else 'almost everywhere'}, so no span shows its white "
+                         f"noise alone"),
         }
     peak_txt = (f"; spectral peaks at {', '.join(fmt(x) for x in peaks)} Hz" if peaks else "")
     span_txt = ", ".join(f"{fmt(a)}..{fmt(b)} s" for a, b in spans[:6]) + (" ..." if len(spans) > 6 else "")
