@@ -286,6 +286,16 @@ def durability_benchmark(root: Path) -> str:
 # ---------------------------------------------------------------------------------------------
 # campaign (benchmarks/validation/campaign_validation.py)
 # ---------------------------------------------------------------------------------------------
+@block("scorecard", "benchmarks/results/scorecard.json")
+def scorecard(root: Path) -> str:
+    """Every world of ``benchmarks/scorecard.py`` at the committed baseline."""
+    from benchmarks.scorecard import table
+
+    d = load(root, "benchmarks/results/scorecard.json")
+    return (f"Library at {d['library_commit']} ({d['date']}); `python benchmarks/scorecard.py` "
+            f"reproduces it.\n\n" + table(d["full"]))
+
+
 @block("campaign-validation", "benchmarks/results/campaign_validation.json")
 def campaign_validation(root: Path) -> str:
     """The joint fit against single runs on a generated campaign, from

@@ -53,6 +53,11 @@ Z_APPLY = 5.0
 N_BLOCKS = 10
 MIN_OFFSET_STEPS = 0.25
 MIN_ANGLE_DEG = 0.1
+#: a fitted frame rotation this close to an axis convention [deg] is reported and applied as it
+CONVENTION_SNAP_DEG = 2.0
+#: reference spans needed to estimate anything (three per time block: a 1 Hz reference over 80 s,
+#: whose frame may be an axis convention, is aligned; the held-out check guards the rest)
+MIN_SPANS = 3 * N_BLOCKS
 #: a reference turning slower than this (RMS) [rad/s] tells neither clock nor frame
 MIN_MOTION_RAD_S = 0.05
 
@@ -145,7 +150,7 @@ def _axis_convention(wg, wb):
     one axis fixes the other two axes' signs only through their small rates: the misfit falls by a
     third, not by half, but it falls everywhere.)"""
     m = np.isfinite(wg).all(1) & np.isfinite(wb).all(1)
-    if m.sum() < 10 * N_BLOCKS:
+    if m.sum() < MIN_SPANS:
         return None
     a, b = wg[m] - np.mean(wg[m], 0), wb[m] - np.mean(wb[m], 0)
     cost = lambda P, i=slice(None): float(np.mean(np.sum((a[i] - b[i] @ P.T) ** 2, 1)))  # noqa: E731
@@ -212,13 +217,13 @@ def alignment_step(run) -> Alignment:
     if tq is None:
         rows = np.nonzero(np.isfinite(run["q_ref"][:, 0]))[0]
         tq, q = run["t"][rows], run["q_ref"][rows]
-    if len(tq) < 10 * N_BLOCKS:
+    if len(tq) < MIN_SPANS + 1:
         return Alignment(None, run)
     dt, w = run["dt"], run["w"]
     # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
     span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
     ta, tb, wb = _ref_rates(tq, q, span)
-    if len(ta) < 10 * N_BLOCKS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
+    if len(ta) < MIN_SPANS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
         return Alignment(None, run)
     integral = _gyro_integral(run["t"], w)
     # a GNSS heading at 1 Hz lags its gyro by a few tenths of a second: the search spans half a
@@ -233,7 +238,10 @@ def alignment_step(run) -> Alignment:
     wg = _gyro_mean(integral, ta - (tau if use_tau else 0.0), tb - (tau if use_tau else 0.0))
     Rm = _rotation(wg, wb)
     rv = Rotation.from_matrix(Rm).as_rotvec()
-    rvs = np.array([Rotation.from_matrix(_rotation(wg[b], wb[b])).as_rotvec() for b in blocks])
+    # the blocks' rotations about the whole run's (near 180 deg a rotation vector flips its sign
+    # from block to block; their differences from the whole run's do not)
+    rvs = np.array([(Rotation.from_matrix(Rm).inv() * Rotation.from_matrix(_rotation(wg[b], wb[b]))).as_rotvec()
+                    for b in blocks])
     rv_se = np.std(rvs, axis=0, ddof=1) / math.sqrt(N_BLOCKS)
     angle = float(np.linalg.norm(rv))
     angle_se = float(np.sqrt(np.sum((rv / max(angle, 1e-300)) ** 2 * rv_se**2))) if angle > 0 else float(np.linalg.norm(rv_se))
@@ -245,7 +253,13 @@ def alignment_step(run) -> Alignment:
         # a heading tells no frame but the vertical's sense (a compass heading turns clockwise
         # seen from above, a gyro's z may point up): the axis convention only
         use_rot = False
-    if not use_rot:
+    if use_rot:
+        # a turn within CONVENTION_SNAP_DEG of an axis convention (other than none) is that convention
+        P = min(_signed_permutations(), key=lambda X: Rotation.from_matrix(X.T @ Rm).magnitude())
+        if not np.allclose(P, np.eye(3)) and math.degrees(Rotation.from_matrix(P.T @ Rm).magnitude()) < CONVENTION_SNAP_DEG:
+            Rm, convention = P, True
+            rv = Rotation.from_matrix(Rm).as_rotvec()
+    else:
         # a body turned about one axis (a pendulum) does not fix the whole rotation, but it does
         # tell an axis convention (the IMU's x pointing back): the signed permutation that fits
         P = _axis_convention(wg, wb)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 SCHEMA = "jaxdrift.diagnosis/1"
 CHANNELS = ("wx", "wy", "wz")
 Z_SIGNIFICANT = 5.0  # |estimate - null| / SE for a systematic finding (false alarms ~ 1e-6 per test)
@@ -43,5 +45,8 @@ def finding(cause, estimate, unit, interval, evidence, z, **extra):
 
 
 def fmt(x):
-    """Three significant digits, the precision of every number quoted in an evidence sentence."""
+    """Three significant digits, the precision of every number quoted in an evidence sentence (a
+    degenerate fit's infinite ratio reads "unbounded", never "inf": a report holds no inf or NaN)."""
+    if not math.isfinite(x):
+        return "undefined" if x != x else ("unbounded" if x > 0 else "-unbounded")
     return f"{x:.3g}"

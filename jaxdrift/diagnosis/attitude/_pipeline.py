@@ -78,9 +78,7 @@ from ._report import assemble_report
 __all__ = ["diagnose_attitude", "diagnose_records"]
 
 
-#: a bound of the gyro noise from the reference's residuals below this [rad/sqrt(s)] (0.0017 deg/sqrt(h),
-#: below the best navigation-grade gyros) tells a user nothing: a run without noise reports none
-NOISE_BOUND_MIN = 5e-7
+NOISE_BOUND_MIN = 5e-7  #: [rad/sqrt(s)] a residuals' noise bound below the best navigation-grade gyros says nothing
 #: a fitted sampling convention further than this from "held" (0) has the reference checked again in it
 LAM_RECHECK = 0.2
 
@@ -309,9 +307,8 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
                                   "widened by that factor",))
     comp = _reference_attitude_error(run, noise.segments, ref_spans, model, n_ref, ref_rows, fit["lam"])
     said = Said(tuple(notes), tuple(observed), tuple(not_observed)) + said + comp.said
-    noise = replace(noise, var_rate=var_rate)
+    noise, bound = replace(noise, var_rate=var_rate), residual_noise_bound(fit, var_rate, n_int)
     if noise.finding is None and not (noise.wn or {}).get("plateau", True):  # never white: the reference bounds it
-        bound = residual_noise_bound(fit, var_rate, n_int)
         if bound is not None and bound["interval"][1] > max(noise.floor * math.sqrt(dt), NOISE_BOUND_MIN):
             noise = replace(noise, finding=bound)
     return replace(comp, findings=tuple(findings), said=said), noise
