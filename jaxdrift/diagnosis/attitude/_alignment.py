@@ -48,8 +48,8 @@ __all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MI
 MAX_OFFSET_S = 0.1
 #: the reference's rates are taken over spans of at least this [s]
 SPAN_S = 0.02
-#: applied beyond this many standard errors (10 blocks scatter: a generous margin)
-Z_APPLY = 5.0
+#: applied beyond this many standard errors (10 blocks scatter), and only where it holds out of sample
+Z_APPLY = 3.0
 N_BLOCKS = 10
 MIN_OFFSET_STEPS = 0.25
 MIN_ANGLE_DEG = 0.1

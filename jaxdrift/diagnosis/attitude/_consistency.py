@@ -29,6 +29,8 @@ are reported as ``reference_inconsistent`` findings, the spikes in a note.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from scipy.ndimage import median_filter
 
@@ -43,7 +45,7 @@ from ...models._quaternion import (
 from .._diffnoise import mad_sigma
 from ._gyro import convention_terms, reference_fit
 
-__all__ = ["interval_rates", "consistency", "rejudge", "still_rows", "RECHECK_SCALE_SE", "RECHECK_CHI2", "AXES",
+__all__ = ["interval_rates", "consistency", "rejudge", "thinned_anchors", "thinned", "MIN_THINNED_INTERVALS", "still_rows", "RECHECK_SCALE_SE", "RECHECK_CHI2", "AXES",
            "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "SPIKE_SPAN", "WINDOW_S"]
 
 AXES = ("x", "y", "z")
@@ -265,3 +267,55 @@ def rejudge(run, fit0, use, spans, spikes, valid, int_seg, anchors, var_rate, sa
                      f"({int(np.sum(use2 & ~use))} interval-axis cells given back to the fit)")
         use, spans, spikes, fit0 = use2, spans2, spikes2, fit2
     return use, spans, spikes, fit0, notes
+
+
+#: thinning keeps at least this many intervals (the drift test's segments need them)
+MIN_THINNED_INTERVALS = 32
+
+
+def thinned_anchors(run, anchors, var_rate):
+    """Anchors far enough apart that the gyro's random walk over an interval is at least the
+    reference's own attitude noise, where that noise dominates (a GNSS/INS or tracker attitude
+    with milliradians of noise at 10-100 Hz against a gyro of 1e-4 rad/sqrt(s)). The noise of
+    each reference row is white in attitude, so interval by interval it reads as a rate noise of
+    sqrt(2) sigma_ref / dt_i and swamps the bias, while over longer intervals it telescopes away.
+    sigma_ref^2 is read off the discrepancies of single intervals against those of pairs (white
+    attitude noise cancels in a pair's sum, the gyro's random walk adds), by robust spreads. Returns (anchors,
+    sigma_ref or None); the anchors unchanged where the reference noise does not dominate."""
+    if len(anchors) < 4 * MIN_THINNED_INTERVALS:
+        return anchors, None
+    gamma, rho, dti = interval_rates(run["w"], run["dt"], run["q_ref"], anchors)
+    d = (rho - gamma) * dti[:, None]  # angle discrepancies per interval
+    ok = np.isfinite(d).all(1)
+    d = d[ok] - np.median(d[ok], 0)
+    if len(d) < 4 * MIN_THINNED_INTERVALS:
+        return anchors, None
+    # robustly (an optical marker's few jumps are outliers, not noise): the spread of one interval's
+    # discrepancy is 2 s_ref^2 + N^2 dt, of two neighbours' sum 2 s_ref^2 + 2 N^2 dt
+    v1 = float(np.mean([mad_sigma(d[:, c]) ** 2 for c in range(3)]))
+    v2 = float(np.mean([mad_sigma(d[1:, c] + d[:-1, c]) ** 2 for c in range(3)]))
+    var_ref = max(v1 - 0.5 * v2, 0.0)
+    step = float(np.median(dti))
+    k = int(math.ceil(2.0 * var_ref / max(var_rate * step, 1e-300)))
+    k = min(k, (len(anchors) - 1) // MIN_THINNED_INTERVALS)
+    if k < 2:
+        return anchors, (math.sqrt(var_ref) if var_ref > 0 else None)
+    return np.unique(np.concatenate([anchors[::k], anchors[-1:]])), math.sqrt(var_ref)
+
+
+def thinned(run, anchors, use, valid, var_rate):
+    """The reference judged interval by interval (``use``, ``valid`` per interval of ``anchors``)
+    and compared over the longer intervals of :func:`thinned_anchors`: a longer interval is used on
+    an axis only where every interval in it is, and valid only where every one is. Returns
+    (anchors, use, valid, notes)."""
+    thin, sigma_ref = thinned_anchors(run, anchors, var_rate)
+    if len(thin) == len(anchors):
+        return anchors, use, valid, []
+    grp = np.searchsorted(thin, anchors[:-1], side="right") - 1
+    m = len(thin) - 1
+    use_t = np.stack([np.bincount(grp, weights=~use[:, c], minlength=m) == 0 for c in range(3)], 1)
+    valid_t = np.bincount(grp, weights=~np.asarray(valid, bool), minlength=m) == 0
+    note = (f"the reference's own attitude noise ({sigma_ref:.3g} rad per row) dominates the gyro's over one "
+            f"interval: judged over {len(anchors) - 1} intervals, compared with the gyro over {m} longer ones, "
+            "where it telescopes away")
+    return thin, use_t & valid_t[:, None], valid_t, [note]

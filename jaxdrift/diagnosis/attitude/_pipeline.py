@@ -40,7 +40,7 @@ from ...models._quaternion import (
 )
 from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE, gyro_inverse
 from ._array import array_step
-from ._consistency import consistency, rejudge, still_rows
+from ._consistency import consistency, rejudge, still_rows, thinned
 from ._realworld import (
     degenerate,
     finite_segments,
@@ -202,10 +202,6 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
     findings = []
     ref_rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
     anchors = _anchors(ref_rows)
-    n_int = len(anchors) - 1
-    T_ref = (anchors[-1] - anchors[0]) * dt
-    M = int(np.clip(min(n_int // 10, T_ref / 2.0), 1, 16))  # bias segments (drift test)
-    int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
     valid = gap_mask(run, anchors)
     use, ref_spans, still_int = consistency(w, dt, q_ref, anchors, t, valid)
@@ -215,6 +211,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
         use, ref_spans = heading_only_cells(use, ref_spans)
         notes.append("the reference is a heading only: compared with the gyro about the vertical alone")
     still = still_rows(n, anchors, still_int)
+    anchors, use, valid, said_thin = thinned(run, anchors, use, valid, noise.var_rate)  # judged finely, fitted coarser
+    notes, n_int = notes + said_thin, len(anchors) - 1
+    M = int(np.clip(min(n_int // 10, (anchors[-1] - anchors[0]) * dt / 2.0), 1, 16))  # bias segments (drift test)
+    int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
     noise = noise_kind_step(run, noise, still, vib)
     var_rate = noise.var_rate
     sample_var = noise.sigma_axis**2
