@@ -334,10 +334,10 @@ def _real(entry: dict, tmp: str) -> dict:
 
 # ----------------------------------------------------------------------------------- scoring
 def _target(d: dict) -> tuple:
-    for k in ("channel", "parameter", "sensor"):
-        if d.get(k) is not None:
-            return d["cause"], str(d[k])
-    return d["cause"], ""
+    """(cause, channel/parameter/sensor) of an effect or a finding (``sweep.target``)."""
+    from benchmarks.validation.sweep import target
+
+    return target(d)
 
 
 def score_run(kind: str, rec: dict) -> dict:
@@ -446,11 +446,9 @@ def score_world(world: World, recs: list[dict]) -> dict:
 
 
 def _fmt(v):
-    if v is None:
-        return "-"
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(f"{x:.3g}" for x in v) + "]"
-    return f"{v:.4g}"
+    from benchmarks.validation.sweep import _fmt as fmt
+
+    return fmt(v)
 
 
 # ----------------------------------------------------------------------------------- table, check
