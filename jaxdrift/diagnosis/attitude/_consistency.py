@@ -269,8 +269,8 @@ def rejudge(run, fit0, use, spans, spikes, valid, int_seg, anchors, var_rate, sa
     return use, spans, spikes, fit0, notes
 
 
-#: thinning keeps at least this many intervals (the drift test's segments need them)
-MIN_THINNED_INTERVALS = 32
+#: thinning keeps at least this many intervals (the drift test splits them into 16 segments of 10)
+MIN_THINNED_INTERVALS = 160
 
 
 def thinned_anchors(run, anchors, var_rate):
