@@ -1,0 +1,47 @@
+"""The scorecard's rules (benchmarks/scorecard.py): what counts as extra confirmed, and when the
+quick check calls a world lower than its baseline."""
+
+from benchmarks import scorecard as sc
+
+
+def _card(k, n, extra=0, files=None, quick=True):
+    w = {"right_first": {"k": k, "n": n}, "extra_confirmed": {"k": extra, "n": n}, "errors": 0}
+    if files is not None:
+        w = {"files": files, "errors": 0, "right_first": {"k": sum(files.values()), "n": len(files)}}
+    return {"quick": quick, "worlds": {"w": w}}
+
+
+def test_the_noise_allowance_is_the_binomial_spread_at_the_full_rate():
+    assert sc.allowed(3, 20, 20) == 1  # p = 21/22: ceil(1.645 sqrt(3 p (1 - p))) = 1
+    assert sc.allowed(4, 6, 21) == 2
+    assert sc.allowed(0, 5, 5) == 0
+
+
+def test_a_drop_beyond_the_noise_fails_and_within_it_passes():
+    base = {"quick": _card(4, 4), "full": _card(20, 20, quick=False)}
+    assert sc.check(_card(3, 4), base) == []  # one run flipped: within the spread of p = 21/22 over 4
+    assert sc.check(_card(2, 4), base)  # two: beyond it
+    assert sc.check(_card(4, 4, extra=2), base)  # two new extra confirmed findings
+    assert sc.check(_card(4, 4, extra=1), base) == []
+
+
+def test_a_real_recording_is_compared_file_by_file():
+    base = {"quick": _card(0, 0, files={"a.ulg": True, "b.ulg": False}),
+            "full": _card(0, 0, files={"a.ulg": True, "b.ulg": False}, quick=False)}
+    assert sc.check(_card(0, 0, files={"a.ulg": True}), base) == []  # b missing here: not compared
+    assert sc.check(_card(0, 0, files={"a.ulg": False, "b.ulg": True}), base) == ["w: a.ulg no longer diagnosed right"]
+
+
+def test_extra_confirmed_is_a_systematic_finding_matching_no_hidden_effect():
+    rec = {"truth": [{"cause": "force_offset", "channel": "f1", "value": 50.0}, {"cause": "force_noise", "value": 2.0}],
+           "findings": [{"cause": "force_offset", "channel": "f1", "estimate": 50.1, "interval": [49.0, 51.0],
+                         "confirmed": True},
+                        {"cause": "parameter_error", "parameter": "k3", "estimate": 0.95, "interval": [0.94, 0.96],
+                         "confirmed": True},
+                        {"cause": "force_delay", "channel": "f2", "estimate": 1e-4, "interval": [0, 2e-4],
+                         "confirmed": False},
+                        {"cause": "force_noise", "estimate": 2.1, "interval": [1.9, 2.3], "estimate_kind": "estimate"}]}
+    s = sc.score_run("vehicle", rec)
+    assert s["right"] and s["confirmed"]
+    assert [e.split("=")[0] for e in s["extra_confirmed"]] == ["parameter_error:k3"]  # the unconfirmed delay is no claim
+    assert s["coverage"] == {"force_offset": True, "force_noise/estimate": True}
