@@ -544,7 +544,7 @@ def run_card(worlds: list[World], *, quick: bool, jobs: int, cache: str, progres
                     have[w.name].append(json.load(fh))
             else:
                 todo.append((w, c, p))
-    t0 = time.time()
+    t0, total = time.time(), sum(map(len, have.values())) + len(todo)
 
     def keep(w, p, rec):
         os.makedirs(os.path.dirname(p), exist_ok=True)
@@ -554,13 +554,11 @@ def run_card(worlds: list[World], *, quick: bool, jobs: int, cache: str, progres
         have[w.name].append(rec)
         if progress:
             verdict = rec.get("error") or ("missing" if rec.get("missing") else "done")
-            print(f"[{sum(map(len, have.values()))}/{sum(map(len, have.values())) + len(todo) - done[0]} "
+            print(f"[{sum(map(len, have.values()))}/{total} "
                   f"{time.time() - t0:.0f}s] {w.name} {rec['index']}: {verdict} ({rec['wall_s']:.1f}s)", flush=True)
 
-    done = [0]
     if jobs <= 1:
         for w, c, p in todo:
-            done[0] += 1
             keep(w, p, run_case(w.name, c))
     else:
         import multiprocessing as mp
@@ -569,7 +567,6 @@ def run_card(worlds: list[World], *, quick: bool, jobs: int, cache: str, progres
         with ProcessPoolExecutor(jobs, mp_context=mp.get_context("spawn")) as ex:
             futs = {ex.submit(run_case, w.name, c): (w, p) for w, c, p in todo}
             for f in as_completed(futs):
-                done[0] += 1
                 keep(*futs[f], f.result())
     card = {"worlds": {}}
     for w in worlds:

@@ -343,6 +343,19 @@ def test_pyulog_hardware_logs_against_the_independent_estimate(tmp_path, name, a
         assert rep["gain"]["after"] < rep["gain"]["before"]
 
 
+def _biased_gyro_against_reference(seed, dt, w_of_t, bias, N, every, T=120.0):
+    """The diagnosis of a gyro (true rates ``w_of_t``, a constant ``bias``, white noise ``N``)
+    against a perfect reference on every ``every``-th row."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, T, dt)
+    w_true = w_of_t(t)
+    w_meas = w_true + np.asarray(bias) + rng.normal(0.0, N / math.sqrt(dt), w_true.shape)
+    q = _integrate(Rotation.identity(), w_true, dt)
+    q_ref = np.full((len(t), 4), np.nan)
+    q_ref[::every] = q[::every]
+    return diagnose_attitude(_run(t, w_meas, q_ref))[0]
+
+
 def test_a_bias_on_a_slow_turn_is_no_inconsistent_reference_and_the_reference_comes_after_the_causes():
     """A body yawing slowly (0.03 rad/s, below what the consistency check calls still) through 3.6
     rad and rocking in pitch (up to 0.012 rad/s) against a clean 10 Hz reference, with a 4 mrad/s
@@ -350,19 +363,10 @@ def test_a_bias_on_a_slow_turn_is_no_inconsistent_reference_and_the_reference_co
     moves while the reference turns about y, as if the reference turned on its own. Judged
     against the gyro as the fit corrects it, the reference is consistent: no
     ``reference_inconsistent``, and the bias is found inside its interval. (Judged against the raw
-    gyro, as before, the run read "the reference turns about x while the gyro says still".)"""
-    rng = np.random.default_rng(4120)
-    dt, T = 0.01, 120.0
-    t = np.arange(0.0, T, dt)
-    n = len(t)
-    w_true = np.column_stack([np.zeros(n), 0.012 * np.sin(2 * np.pi * t / 20.0), np.full(n, 0.03)])
-    bias = np.array([0.004, 0.0, 0.0])
-    N = 2e-4
-    w_meas = w_true + bias + rng.normal(0.0, N / math.sqrt(dt), (n, 3))
-    q = _integrate(Rotation.identity(), w_true, dt)
-    q_ref = np.full((n, 4), np.nan)
-    q_ref[::10] = q[::10]
-    rep, _ = diagnose_attitude(_run(t, w_meas, q_ref))
+    gyro, this run passes too: it guards the re-judging, it did not reproduce a false flag.)"""
+    rep = _biased_gyro_against_reference(
+        4120, 0.01, lambda t: np.column_stack([0 * t, 0.012 * np.sin(2 * np.pi * t / 20.0), 0 * t + 0.03]),
+        bias=(0.004, 0.0, 0.0), N=2e-4, every=10)
     assert not _by(rep, "reference_inconsistent"), _by(rep, "reference_inconsistent")
     b = {f["channel"]: f for f in _by(rep, "gyro_bias")}
     assert "wx" in b and b["wx"]["interval"][0] <= 0.004 <= b["wx"]["interval"][1], rep["findings"]
@@ -373,21 +377,12 @@ def test_a_one_hertz_reference_consistent_as_given_is_neither_turned_nor_shifted
     """A 120 s run whose reference has one row a second, in the gyro's own frame and clock, the body
     turning at 0.5-3 Hz: the reference's rotation over each second is compared with the gyro's
     integral over the same second, so no frame rotation or clock offset is applied (compared with
-    the gyro at one instant, such a run was turned by 180 deg and shifted by 61 ms), and a 2 mrad/s
-    bias is found inside its interval."""
-    rng = np.random.default_rng(4121)
-    dt, T = 0.005, 120.0
-    t = np.arange(0.0, T, dt)
-    n = len(t)
-    w_true = np.column_stack([0.3 * np.sin(2 * np.pi * 0.7 * t), 0.25 * np.sin(2 * np.pi * 1.3 * t + 1.0),
-                              0.2 * np.sin(2 * np.pi * 0.05 * t) + 0.1 * np.sin(2 * np.pi * 2.9 * t)])
-    bias = np.array([0.0, 0.002, 0.0])
-    N = 1e-4
-    w_meas = w_true + bias + rng.normal(0.0, N / math.sqrt(dt), (n, 3))
-    q = _integrate(Rotation.identity(), w_true, dt)
-    q_ref = np.full((n, 4), np.nan)
-    q_ref[::200] = q[::200]
-    rep, _ = diagnose_attitude(_run(t, w_meas, q_ref))
+    the gyro at one instant, this run was turned by 37 deg), and a 2 mrad/s bias is found inside its
+    interval."""
+    rep = _biased_gyro_against_reference(
+        4121, 0.005, lambda t: np.column_stack([0.3 * np.sin(2 * np.pi * 0.7 * t), 0.25 * np.sin(2 * np.pi * 1.3 * t + 1.0),
+                                                0.2 * np.sin(2 * np.pi * 0.05 * t) + 0.1 * np.sin(2 * np.pi * 2.9 * t)]),
+        bias=(0.0, 0.002, 0.0), N=1e-4, every=200)
     al = rep["run"]["reference_alignment"]
     assert al is not None and al["applied"] == {"clock_offset": False, "rotation": False}, al
     assert al["rotation_deg"] < 2.0, al

@@ -281,7 +281,7 @@ def thinned_anchors(run, anchors, var_rate):
     sqrt(2) sigma_ref / dt_i and swamps the bias, while over longer intervals it telescopes away.
     sigma_ref^2 is read off the discrepancies of single intervals against those of pairs (white
     attitude noise cancels in a pair's sum, the gyro's random walk adds), by robust spreads. Returns (anchors,
-    sigma_ref or None); the anchors unchanged where the reference noise does not dominate."""
+    sigma_ref), or (the anchors unchanged, None) where the reference noise does not dominate."""
     if len(anchors) < 4 * MIN_THINNED_INTERVALS:
         return anchors, None
     gamma, rho, dti = interval_rates(run["w"], run["dt"], run["q_ref"], anchors)
@@ -299,7 +299,7 @@ def thinned_anchors(run, anchors, var_rate):
     k = int(math.ceil(2.0 * var_ref / max(var_rate * step, 1e-300)))
     k = min(k, (len(anchors) - 1) // MIN_THINNED_INTERVALS)
     if k < 2:
-        return anchors, (math.sqrt(var_ref) if var_ref > 0 else None)
+        return anchors, None
     return np.unique(np.concatenate([anchors[::k], anchors[-1:]])), math.sqrt(var_ref)
 
 

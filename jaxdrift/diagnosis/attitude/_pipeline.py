@@ -78,7 +78,6 @@ from ._report import assemble_report
 __all__ = ["diagnose_attitude", "diagnose_records"]
 
 
-NOISE_BOUND_MIN = 5e-7  #: [rad/sqrt(s)] a residuals' noise bound below the best navigation-grade gyros says nothing
 #: a fitted sampling convention further than this from "held" (0) has the reference checked again in it
 LAM_RECHECK = 0.2
 
@@ -307,10 +306,9 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
                                   "widened by that factor",))
     comp = _reference_attitude_error(run, noise.segments, ref_spans, model, n_ref, ref_rows, fit["lam"])
     said = Said(tuple(notes), tuple(observed), tuple(not_observed)) + said + comp.said
-    noise, bound = replace(noise, var_rate=var_rate), residual_noise_bound(fit, var_rate, n_int)
+    noise = replace(noise, var_rate=var_rate)
     if noise.finding is None and not (noise.wn or {}).get("plateau", True):  # never white: the reference bounds it
-        if bound is not None and bound["interval"][1] > max(noise.floor * math.sqrt(dt), NOISE_BOUND_MIN):
-            noise = replace(noise, finding=bound)
+        noise = replace(noise, finding=residual_noise_bound(fit, var_rate, n_int, noise.floor * math.sqrt(dt)))
     return replace(comp, findings=tuple(findings), said=said), noise
 
 

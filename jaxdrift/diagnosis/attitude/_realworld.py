@@ -31,7 +31,7 @@ from ._noise import (BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise, 
                      white_noise_recorded)
 
 __all__ = ["noise_kind_step", "degenerate", "gap_mask", "residual_noise_scale",
-           "inconsistent_findings", "residual_noise_bound", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
+           "inconsistent_findings", "residual_noise_bound", "NOISE_BOUND_MIN", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
            "heading_error", "STILL_MIN_S"]
 
 STILL_MIN_S = 1.0  # s: shortest still span whose differences give a noise estimate (and 256 rows)
@@ -266,17 +266,26 @@ def _noise_kind(run, noise, still, vib, by="the reference"):
                      f"content may be true motion (vibration); " + f["evidence"])})
 
 
-def residual_noise_bound(fit, var_rate, n_int):
+#: a bound of the gyro noise from the reference's residuals below this [rad/sqrt(s)] (0.0017 deg/sqrt(h),
+#: below the best navigation-grade gyros) tells a user nothing: a run without noise reports none
+NOISE_BOUND_MIN = 5e-7
+
+
+def residual_noise_bound(fit, var_rate, n_int, floor=0.0):
     """Where the rates' differences never show a white noise (vibration or motion the samples
     resolve), the reference still bounds it: the intervals' residuals hold the gyro's white noise
     integrated over each interval, and besides it only what adds (the reference's own noise,
     vibration's integration error, what the fit leaves): the 95 % upper limit of the noise density
-    they hold, ``var_rate chi2 / chi2_0.05(dof)``. None where the fit has no degrees of freedom."""
+    they hold, ``var_rate chi2 / chi2_0.05(dof)``. None where the fit has no degrees of freedom, or
+    where the bound is at most ``floor`` (the file's rounding, as a density) or
+    :data:`NOISE_BOUND_MIN`."""
     dof = float(fit["dof"])
     if not dof >= 1 or not float(fit["chi2"]) > 0:
         return None
     N_hat = math.sqrt(var_rate * float(fit["chi2"]) / dof)
     N_up = math.sqrt(var_rate * float(fit["chi2"]) / float(stats.chi2.ppf(0.05, dof)))
+    if not N_up > max(floor, NOISE_BOUND_MIN):
+        return None
     return {"cause": GYRO_NOISE.name, "estimate_kind": "upper_bound", "estimate": N_hat, "unit": GYRO_NOISE.unit,
             "interval": [0.0, N_up],
             "evidence": (f"an upper bound, N <= {fmt(N_up)} rad/sqrt(s), from the residuals between the reference "

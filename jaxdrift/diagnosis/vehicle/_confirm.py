@@ -118,7 +118,7 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None) -> tuple[Selec
             imp = improvement(prob, fit, i)
             why = failure(imp, fit.causes[i], float(fit.theta[i]), prob.pipe)
             if why is not None:
-                bad = (i, {**imp, "failed": why, "explained": explained(imp),
+                bad = (i, {**imp, "failed": why, "explained": explained(imp), "share_min": SHARE_MIN,
                            "margin": fit.causes[i].kind.margin(prob.pipe)})
                 break
         if bad is None:

@@ -387,9 +387,10 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
         if why == "share":
             reasons[c] = (f"not confirmed, left out of the extended model: a small unexplained residual, not a "
                           f"cause: corrected, the {imp['channel']} residual's RMS goes {imp['without']:.4g} -> "
-                          f"{imp['with']:.4g}, so it explains {math.sqrt(max(imp['without'] ** 2 - imp['with'] ** 2, 0)):.3g} "
+                          f"{imp['with']:.4g}, so it explains {imp['explained'] * imp['with']:.3g} "
                           f"({100 * imp['explained']:.0f} % of what is left, the comparison's noise and error "
-                          f"among it); a confirmed cause explains at least as much as it leaves")
+                          f"among it); a confirmed cause explains at least {100 * imp['share_min']:.0f} % of what it "
+                          "leaves")
         elif why == "margin":
             reasons[c] = (f"not confirmed, left out of the extended model: its size is within {imp['margin']:.3g} "
                           f"({c.kind.unit}) of no effect, a difference no engineer would act on")
