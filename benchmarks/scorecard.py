@@ -5,7 +5,9 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
 
 - ``vehicle-*/indep``: the independent generator ``validation/gen_vehicle.py`` (scipy half-car, its own
   roads), its standard, gain-drift, nonlinear and crosstalk designs (``validation/sweep.py``) and
-  its clipped runs (``validation/clip_sweep.py``);
+  its clipped runs (``validation/clip_sweep.py``); ``vehicle-wide/indep`` draws the habits the others
+  lack: roads of straight lines between profile points (forces that jump between samples), every
+  class at up to 35 m/s, and 0.3-5 N of force noise on half its runs, effect-free;
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep`` and ``attitude-wide/indep``: ``validation/gen_attitude.py``; the wide
@@ -89,6 +91,7 @@ WORLDS = [
     World("vehicle-nonlinear/indep", "vehicle", "indep_vehicle", 20261207, 12, 2, {"design": "nonlinear"}),
     World("vehicle-crosstalk/indep", "vehicle", "indep_vehicle", 20261208, 6, 1, {"design": "crosstalk"}),
     World("vehicle-clipping/indep", "vehicle", "indep_clip", 20261209, 6, 1),
+    World("vehicle-wide/indep", "vehicle", "indep_vehicle", 20261216, 32, 3, {"design": "wide"}),
     World("vehicle-standard/own", "vehicle", "own_vehicle", 20261210, 12, 2),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
@@ -113,7 +116,7 @@ def cases(world: World) -> list[dict]:
         from benchmarks.validation import gen_vehicle as gv
 
         fn = {"standard": gv.design, "gain_drift": gv.design_gain_drift, "nonlinear": gv.design_nonlinear,
-              "crosstalk": gv.design_crosstalk}[o["design"]]
+              "crosstalk": gv.design_crosstalk, "wide": gv.design_wide}[o["design"]]
         return fn(world.n, world.seed)
     if b == "indep_clip":
         from benchmarks.validation import gen_vehicle as gv

@@ -27,7 +27,7 @@ import math
 import os
 
 import numpy as np
-from scipy.integrate import solve_ivp
+from scipy.integrate import DOP853, OdeSolution, solve_ivp
 from scipy.interpolate import make_interp_spline
 from scipy.linalg import expm
 
@@ -132,12 +132,21 @@ class FilteredRoad:
     profile is zero for x <= 0 and fades in over ``ramp`` metres.
     """
 
-    def __init__(self, rng, cls: str, x_end: float, ramp: float = 10.0, dx: float = ROAD_DX):
-        self.dx, self.ramp = dx, ramp
+    def __init__(self, rng, cls: str, x_end: float, ramp: float = 10.0, dx: float = ROAD_DX,
+                 interp: str = "spline7"):
+        self.dx, self.ramp, self.interp = dx, ramp, interp
         n = int(math.ceil(x_end / dx)) + 2
         s = filtered_noise(rng, cls, n, dx)
         self.state = s  # h, h', h'' at x = k dx (exact samples of the filtered noise)
         self.n = n
+        if interp == "linear":
+            # the heights joined by straight lines, as a profilometer's points are: the slope jumps
+            # at every grid point, so the tyre force (its damper term) jumps between samples
+            self.h = s[:, 0].tolist()
+            self.pinned = ()  # the cells under the wheels while a stretch is integrated
+            return
+        if interp != "spline7":
+            raise ValueError(f"road interpolation {interp!r}: spline7 or linear")
         # between the samples: the interpolating spline of degree 7 (C6, so the integrator's
         # steps are set by the road's content, not by kinks); per grid cell its Taylor
         # coefficients at the cell's left end, as Python lists (fast scalar evaluation)
@@ -156,6 +165,14 @@ class FilteredRoad:
         if k >= self.n - 1:
             raise ValueError(f"road evaluated at x={x} beyond its end")
         u = x - k * self.dx
+        if self.interp == "linear":
+            for kk in self.pinned:  # a stretch between kinks: each wheel stays in its own cell
+                if (kk - 1e-6) * self.dx <= x <= (kk + 1 + 1e-6) * self.dx:
+                    k = kk
+                    break
+            h0, h1 = self.h[k], self.h[k + 1]
+            slope = (h1 - h0) / self.dx
+            return h0 + slope * (x - k * self.dx), slope
         c = self.coef[k]
         h = c[7]
         dh = 7.0 * c[7]
@@ -263,11 +280,53 @@ def simulate(p: dict, road: FilteredRoad, v: float, x0: float, t_end: float, rto
              nl: dict | None = None, scale: float = 1.0):
     """Dense solution of the road-driven half-car on [0, t_end] (t = 0: static equilibrium);
     ``nl``: nonlinear suspension effects (see ``_suspension_law``), ``scale``: road height factor."""
-    sol = solve_ivp(_rhs_factory(p, road, v, x0, nl, scale), (0.0, t_end), equilibrium(p), method="DOP853",
+    rhs = _rhs_factory(p, road, v, x0, nl, scale)
+    if getattr(road, "interp", "spline7") == "linear":
+        return _simulate_between_kinks(rhs, road, p["a"] + p["b"], v, x0, t_end, rtol, atol, equilibrium(p))
+    sol = solve_ivp(rhs, (0.0, t_end), equilibrium(p), method="DOP853",
                     rtol=rtol, atol=atol, dense_output=True)
     if not sol.success:
         raise RuntimeError(f"solve_ivp failed: {sol.message}")
     return sol
+
+
+def _simulate_between_kinks(rhs, road, L: float, v: float, x0: float, t_end: float, rtol, atol, y0):
+    """A road of straight lines has a kink under a wheel each time the wheel passes a profile point,
+    and the tyre force jumps there: one DOP853 integration per stretch between two kinks (either
+    wheel), each smooth, joined into one dense solution."""
+    dx = road.dx
+    kinks = []
+    for lag in (0.0, L):  # front wheel at x0 + v t, rear one L behind
+        k0 = max(int(math.floor((x0 - lag) / dx)) + 1, 0)
+        k1 = int(math.floor((x0 - lag + v * t_end) / dx))
+        kinks.append((np.arange(k0, k1 + 1) * dx + lag - x0) / v)
+    for edge in (0.0, road.ramp):  # where the fade-in starts and ends
+        kinks.append(np.array([(edge - x0) / v, (edge + L - x0) / v]))
+    t = np.unique(np.concatenate(kinks + [np.array([0.0, t_end])]))
+    t = t[(t >= 0.0) & (t <= t_end)]
+    ts, parts, y = [0.0], [], np.asarray(y0, float)
+    for ta, tb in zip(t[:-1], t[1:]):
+        if tb - ta < 1e-12:
+            continue
+        tm = 0.5 * (ta + tb)  # each wheel's cell: a stage evaluated at a kink must not see the next one
+        road.pinned = tuple(int(math.floor((x0 + v * tm - lag) / dx)) for lag in (0.0, L))
+        solver = DOP853(rhs, ta, y, tb, rtol=rtol, atol=atol)
+        while solver.status == "running":
+            msg = solver.step()
+            if solver.status == "failed":
+                raise RuntimeError(f"DOP853 failed at t={solver.t}: {msg}")
+            ts.append(solver.t)
+            parts.append(solver.dense_output())
+        y = solver.y
+    road.pinned = ()
+    return _Dense(OdeSolution(ts, parts))
+
+
+class _Dense:
+    """What ``signals`` reads of a solve_ivp result: ``.sol(t)``."""
+
+    def __init__(self, sol):
+        self.sol = sol
 
 
 def signals(p: dict, road: FilteredRoad, v: float, x0: float, sol, tau: np.ndarray, scale: float = 1.0,
@@ -365,7 +424,7 @@ def _shuffled(plan: list, seed: int, design: str) -> list[dict]:
     cases = []
     for i, j in enumerate(order):
         kind, what = plan[j]
-        cases.append({"index": i, "stratum": kind, "what": [list(w) for w in what],
+        cases.append({"index": i, "stratum": kind, "what": [list(w) if isinstance(w, tuple) else w for w in what],
                       "seed": int(rng.integers(2**31)), "design": design})
     return cases
 
@@ -408,6 +467,37 @@ def design_crosstalk(n: int, seed: int, free_share: float = 0.2) -> list[dict]:
     plan += [("pair", (CROSSTALK[i % 2], (("force_offset", "force_scale")[(i // 2) % 2], ("f1", "f2")[(i // 4) % 2])))
              for i in range(n_pair)]
     return _shuffled(plan, seed, "crosstalk")
+
+
+def design_wide(n: int, seed: int) -> list[dict]:
+    """``n`` cases with the habits the other designs lack (``make_case`` draws them apart, from the
+    case's own second stream, so the other designs are unchanged): half the roads straight lines
+    between profile points 5 cm apart (the tyre force jumps between samples), every road class but
+    E at up to 35 m/s, and a force noise of 0.3-5 N whatever the vehicle. Half the cases are
+    effect-free with that noise (the noise interval's test), 10 % without noise, the rest one
+    systematic effect (``SINGLES``) or two (``PAIRS``); shuffled."""
+    n_noise, n_clean = round(0.5 * n), round(0.1 * n)
+    n_single = round(0.5 * (n - n_noise - n_clean))
+    n_pair = n - n_noise - n_clean - n_single
+    plan = [("noise", ())] * n_noise + [("clean", ())] * n_clean
+    plan += [("single", (SINGLES[(5 * i) % len(SINGLES)],)) for i in range(n_single)]
+    plan += [("pair", PAIRS[(3 * i) % len(PAIRS)]) for i in range(n_pair)]
+    return _shuffled(plan, seed, "wide")
+
+
+def _widen(case: dict, out: dict) -> dict:
+    """The wide design's extra draws (``design_wide``), from the case's second stream."""
+    rng = np.random.default_rng([case["seed"], 1])
+    out["road_interp"] = str(rng.choice(["spline7", "linear"]))
+    if out["road_class"] == "E":
+        out["road_class"] = str(rng.choice(["B", "C", "D"]))
+    out["speed"] = float(rng.uniform(10.0, 35.0))
+    sigma = float(_loguniform(rng, 0.3, 5.0))
+    fx = [e for e in out["effects"] if e["cause"] != "force_noise"]
+    if case["stratum"] != "clean":
+        fx.append({"cause": "force_noise", "value": sigma})
+    out["effects"] = fx
+    return out
 
 
 def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500, 600, 1000, 1200, 2000),
@@ -453,7 +543,7 @@ def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500,
         lvl = _loguniform(rng, 1.0, 30.0)
         for c in CHANNEL_SETS[chan]:
             motion_noise[c] = lvl * {"beta": 3e-6, "z3": 3e-6, "s1": 3e-6, "s2": 3e-6, "beta_rate": 3e-5}[c]
-    return {
+    out = {
         **case, "vehicle_kind": vkind, "model": nominal, "road_class": cls, "speed": speed, "fs": fs,
         "duration": dur, "channel_set": chan, "channels": list(CHANNEL_SETS[chan]),
         "precision": int(rng.integers(6, 10)), "t0": float(rng.choice([0.0, round(float(rng.uniform(0, 500)), 3)])),
@@ -461,6 +551,7 @@ def make_case(case: dict, *, durations=(10.0, 120.0), rates=(200, 250, 300, 500,
         "column_order_seed": int(rng.integers(2**31)), "road_seed": int(rng.integers(2**31)),
         "noise_seed": int(rng.integers(2**31)),
     }
+    return _widen(case, out) if case.get("design") == "wide" else out
 
 
 # ----------------------------------------------------------------------------- one run
@@ -519,7 +610,8 @@ def generate(case: dict) -> tuple[dict, dict]:
     p = true_vehicle(case)
     v, fs, T = case["speed"], case["fs"], case["duration"]
     x0 = -v * case["lead_in"]  # the front wheel reaches the rough road after the lead-in
-    road = FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.1) + 1.0)
+    road = FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.1) + 1.0,
+                        interp=case.get("road_interp", "spline7"))
     n = int(round(T * fs)) + 1
     tau = np.arange(n) / fs
     nl, scale, lift = _size_nonlinear(case, p, road, v, x0, tau)

@@ -11,7 +11,8 @@ from ...io._corrections import NO_CORRECTION, Corrections
 from ...io._csvio import MODEL_KEYS
 from ...io._timebase import run_block
 from ._causes import FORCE_CHANNELS, FORCE_NOISE, FORCE_OFFSET, PARAMETER_ERROR, Cause, _apply, _finding_for, _practical
-from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_white,
+from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_shared,
+                         force_top_band_white,
                          lowband_cutoff, written_digits)
 from ._problem import _Problem
 from ._residuals import Residuals
@@ -100,6 +101,14 @@ def _sensor_noise(prob: "_Problem") -> bool:
                for v in prob.motion_noise.values())
 
 
+def _shared_text(shared: tuple, hf: float) -> str:
+    """The evidence clause for road content both forces share at the top of the band."""
+    return (f"; the forces' 4th differences give {hf:.3g} N, and the two forces share that content "
+            f"{abs(shared[0]) * 1e3:.4g} ms apart (correlation {shared[1]:.2f}, at most {shared[2]:.2f} "
+            "by chance): road content both wheels meet, which sampling without an anti-aliasing filter "
+            "folds into every band, so the level is an upper bound and its interval starts at 0")
+
+
 def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarray | None = None,
                 restored=()) -> dict:
     """The force-noise level with its 95 % interval and the sentence saying where it comes from.
@@ -131,6 +140,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                f"(worth {dof:.0f} independent samples; the full-band residual corresponds "
                f"to {full:.3g} N including the comparison's own discretisation error)")
         from_lowband = not (prob.pipe.band and hf < sigma)  # else the 4th differences give less
+        shared = force_top_band_shared(run)
         if not from_lowband:
             # Sensor noise on the measured motion left in the band adds to the residual's low band
             # and reads as force noise; the forces' own 4th differences do not see it. Both are
@@ -146,8 +156,12 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                         f"Nyquist frequency reaches both, so its interval starts at 0)")
             elif force_top_band_white(run):
                 kind = "estimate"
-                src += ("; the forces' 4th, 6th and 8th differences agree, so the top of the band "
-                        "holds noise alone and the 4th-difference level is an estimate")
+                src += ("; the forces' 4th, 6th and 8th differences agree and the two forces share "
+                        "nothing there, so the top of the band holds noise alone and the "
+                        "4th-difference level is an estimate")
+            elif shared is not None:
+                kind = "upper_bound"
+                src += _shared_text(shared, hf)
             else:
                 # a level read from the forces' differences holds their own content there too
                 kind = "upper_bound"
@@ -155,6 +169,12 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                         "forces' own content near the Nyquist frequency), so it is an upper bound "
                         "and its interval starts at 0")
             sigma = hf
+        elif shared is not None and hf >= sigma / ALIAS_RATIO:
+            # road content at the top of the band, in both forces: what lies above the Nyquist
+            # frequency folds into the low band too (an independent run on a road of straight
+            # lines read 8.6 N there for 3.4 N of noise, its 4th differences 15.9 N)
+            kind, lo = "upper_bound", 0.0
+            src += _shared_text(shared, hf)
         elif not found and sigma > NOISE_CONFIRMED_MIN_N and sigma / ALIAS_RATIO <= hf <= ALIAS_RATIO * sigma:
             # below the reporting floor, but the forces' own 4th differences, an estimate from the
             # other end of the band that shares nothing with the residual, give the same level:
@@ -194,11 +214,13 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                f"Nyquist frequency counts as noise here)")
         notes.append("The run has neither beta, z3 nor s1/s2: only the static load and the force "
                      "noise can be checked.")
-    if dynamic and from_lowband and _sensor_noise(prob) and hi > 0:
+    if dynamic and from_lowband and _sensor_noise(prob):
         # the sensor noise's share of the low band is estimated from the top band, and the
         # estimate can be off by 2x where slow motion is written with few digits (see
         # _Problem._lowband_channels): taking out too much leaves too little force noise. The
-        # level with the sensor noise left in bounds it from above.
+        # level with the sensor noise left in bounds it from above, also where the estimate took
+        # out all of the band's power (then the band cannot see the force noise, and only this
+        # level says how much it could hide: a detection limit, not the comparison's floor)
         raw_hi = _chi2_sigma_interval(with_motion, dof)[1]
         if raw_hi > hi:
             hi = raw_hi
@@ -466,10 +488,14 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
     # below the comparison's own floor: still a statement, the floor as the bound (after the joint
     # widening, which it does not take part in: the floor is no statistical interval)
     b = max(noise["bound"], NOISE_CONFIRMED_MIN_N)
+    floor_text = (f"At most {b:.3g} N, the comparison's own floor: {src}; a force noise below "
+                  f"{NOISE_CONFIRMED_MIN_N:g} N cannot be told from the comparison's own error.")
+    if noise["bound"] > NOISE_CONFIRMED_MIN_N:  # the band's own detection limit, above the floor
+        floor_text = (f"At most {b:.3g} N, the largest force noise the comparison could have missed: "
+                      f"{src}; below {NOISE_CONFIRMED_MIN_N:g} N a level cannot be told from the "
+                      f"comparison's own error.")
     floor_bound = None if (noise["found"] or sigma >= NOISE_CONFIRMED_MIN_N) else FORCE_NOISE.finding(
-        sigma, 0.0, b, "upper_bound", (
-            f"At most {b:.3g} N, the comparison's own floor: {src}; a force noise below "
-            f"{NOISE_CONFIRMED_MIN_N:g} N cannot be told from the comparison's own error."))
+        sigma, 0.0, b, "upper_bound", floor_text)
     findings = [{**d.finding(det), "confirmed": True} for d, det in detected] + form["findings"] + findings
     findings = _stand_ins(findings, form.get("unseen") or [])
     # logger faults (found by the reader before anything was fitted; the run is their sound part)
