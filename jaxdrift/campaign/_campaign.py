@@ -148,8 +148,10 @@ def consistency_summary(cons):
         "each run's own estimate of the parameter (the other shared parameters held at the joint "
         "values, the run's sensor effects projected out) with its single-run interval (sandwich "
         "variance and the resolution floor); their inverse-variance mean (meta: the joint "
-        "finding's estimate and interval); chi-square of their scatter about that mean; "
-        "runs outside their 95 % interval after Bonferroni over the runs are listed"),
+        "finding's estimate and interval); chi-square of their scatter about that mean, and each "
+        "run's distance from it; family-wise: the campaign's alarms, over every parameter and every "
+        "run, stay within the level (Bonferroni: each scatter test at level / (2 x parameters), "
+        "each run's at that over the runs)"),
         "parameters": cons}
 
 
@@ -219,7 +221,8 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
 
                 _write_cache(jfile, joint)
         if joint is not None:  # what the fit implies, from the fit (cached or new)
-            joint["consistency"] = consistency_summary([check_consistency(e) for e in joint["consistency"]["parameters"]])
+            params = joint["consistency"]["parameters"]
+            joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
             joint["findings"] = _findings(joint, results)
         dur = None
         if durability and joint is not None:

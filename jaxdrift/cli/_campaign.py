@@ -122,7 +122,8 @@ def run_campaign(args) -> int:
         c.info(f"joint: {f['parameter']} x{f['estimate']:.5g} [{f['interval'][0]:.5g}, {f['interval'][1]:.5g}]")
     for cons in joint.get("consistency", {}).get("parameters", []):
         if not cons["consistent"]:
-            c.warn(f"{cons['parameter']} differs between runs (p = {cons['p_value']:.3g}): "
+            c.warn(f"{cons['parameter']} differs between runs (p = {cons['p_value']:.3g}, below "
+                   f"{cons.get('level', 0.01):.2g}, the campaign's level shared over every parameter and run): "
                    + ", ".join(d["run"] for d in cons["disagreeing_runs"]))
     if pid == 0:
         from ._report import finish
