@@ -108,6 +108,52 @@ def test_integration_converged():
     assert np.max(np.abs(s1["f1"] - s2["f1"])) < 1e-9 * np.ptp(s2["f1"])
 
 
+def test_linear_road_between_kinks():
+    """A road of straight lines between profile points (the wide design): heights at the points are
+    the filtered noise's, the slope is constant in each cell, and the integration between kinks
+    (one DOP853 per stretch) agrees with solve_ivp across the kinks at a 100x tighter tolerance,
+    whose step control finds each kink itself: pitch and forces to 1e-9 of their range. The tyre
+    force jumps at the kinks (its damper term), as on a measured road of straight lines."""
+    from scipy.integrate import solve_ivp
+
+    c = _case("clean", [], 8, road_class="C", speed=20.0)
+    p = gv.true_vehicle(c)
+    road = gv.FilteredRoad(np.random.default_rng(3), "C", 40.0, interp="linear")
+    x = np.arange(300, 400) * road.dx
+    assert np.allclose([road.raw(float(v))[0] for v in x], road.state[300:400, 0], rtol=0, atol=1e-15)
+    mid = x + 0.37 * road.dx
+    assert np.allclose([road.raw(float(v))[1] for v in mid], np.diff(road.state[300:401, 0]) / road.dx)
+    x0, T = 5.0, 0.6  # from inside the fade-in to past it (x 5-17 m)
+    tau = np.linspace(0.0, T, 601)
+    s1 = gv.signals(p, road, 20.0, x0, gv.simulate(p, road, 20.0, x0, T), tau)
+    ref = solve_ivp(gv._rhs_factory(p, road, 20.0, x0), (0.0, T), gv.equilibrium(p), method="DOP853",
+                    rtol=1e-12, atol=1e-14, dense_output=True)
+    s2 = gv.signals(p, road, 20.0, x0, ref, tau)
+    for k in ("beta", "z3", "f1", "f2"):
+        assert np.max(np.abs(s1[k] - s2[k])) < 1e-9 * np.ptp(s2[k]), k
+    # the front tyre force jumps by -d1 v (change of slope) where the front wheel passes a point
+    sol = gv.simulate(p, road, 20.0, x0, T)
+    for k in (250, 251, 300):
+        tk = (k * road.dx - x0) / 20.0
+        f = gv.signals(p, road, 20.0, x0, sol, np.array([tk - 1e-9, tk + 1e-9]))["f1"]
+        ds = (road.state[k + 1, 0] - road.state[k, 0] - road.state[k, 0] + road.state[k - 1, 0]) / road.dx
+        assert f[1] - f[0] == pytest.approx(-p["d1"] * 20.0 * ds, rel=1e-3)
+
+
+def test_wide_design_draws_the_other_habits():
+    """The wide design: half its roads straight lines, classes A-D at 10-35 m/s, 0.3-5 N of force
+    noise on every run but the noise-free ones, and the other designs' draws unchanged by it."""
+    cases = [gv.make_case(c, durations=(10.0, 40.0), max_samples=2000) for c in gv.design_wide(40, 7)]
+    interp = [c["road_interp"] for c in cases]
+    assert 10 <= interp.count("linear") <= 30 and set(interp) == {"linear", "spline7"}
+    assert all(c["road_class"] != "E" and 10.0 <= c["speed"] <= 35.0 for c in cases)
+    noise = [e["value"] for c in cases for e in c["effects"] if e["cause"] == "force_noise"]
+    assert len(noise) == sum(c["stratum"] != "clean" for c in cases) and 0.3 <= min(noise) and max(noise) <= 5.0
+    assert sum(c["stratum"] == "noise" for c in cases) == 20
+    std = gv.make_case(gv.design(4, 7)[0])
+    assert "road_interp" not in std
+
+
 # ----------------------------------------------------------------------------- contract
 @pytest.mark.parametrize("what", [("force_offset", "f1"), ("force_scale", "f2"), ("force_delay", "f1"),
                                   ("parameter_error", "I"), None])
