@@ -360,6 +360,10 @@ def inconsistent_findings(spans, use, duration=None):
         if sp["kind"] == "jumps":
             parts.append(f"jumps about {sp['axis']} at t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s ({fmt(sp['rate'])} rad/s "
                          "over one interval: a reset)")
+        elif sp["kind"] == "converges":
+            parts.append(f"converges about the {sp['frame']} {sp['axis']} axis over t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s "
+                         f"(an error of {fmt(math.degrees(sp['error_rad']))} deg decaying with a time constant of "
+                         f"{fmt(sp['tau_s'])} s: an estimator still converging)")
         else:
             parts.append(f"turns about {sp['axis']} over t = {fmt(sp['t0'])}..{fmt(sp['t1'])} s while the gyro says "
                          f"the body is still (up to {fmt(sp['rate'])} rad/s)")
@@ -373,7 +377,8 @@ def inconsistent_findings(spans, use, duration=None):
     total += b - a
     axes = sorted({sp["axis"] for sp in spans})
     share = f" ({fmt(100.0 * total / duration)} % of the run)" if duration else ""
-    what = (f"the reference is inconsistent with the gyro on {len(spans)} stretch(es) about the global "
+    frame = "global " if all(sp.get("frame", "global") == "global" for sp in spans) else ""
+    what = (f"the reference is inconsistent with the gyro on {len(spans)} stretch(es) about the {frame}"
             f"{', '.join(axes)} axis, {fmt(total)} s in all{share}; left out of the gyro fit there "
             f"({int((~use).sum())} interval-axis cells; an estimator still converging, a heading reset): "
             + "; ".join(parts[:5]) + ("; ..." if len(parts) > 5 else ""))
@@ -381,7 +386,8 @@ def inconsistent_findings(spans, use, duration=None):
          "span_s": [float(min(sp["t0"] for sp in spans)), float(max(sp["t1"] for sp in spans))],
          "estimate": float(max(sp["rate"] for sp in spans)), "unit": REFERENCE_INCONSISTENT.unit, "interval": None,
          "evidence": what, "spans": [{"axis": sp["axis"], "span_s": [sp["t0"], sp["t1"]], "rate": sp["rate"],
-                                      "kind": "reset" if sp["kind"] == "jumps" else "turns while the gyro says still"}
+                                      "kind": {"jumps": "reset", "converges": "converging"}.get(
+                                          sp["kind"], "turns while the gyro says still")}
                                      for sp in spans],
          "left_out_s": float(total)}
     return [(f, 0.0)]
