@@ -1,0 +1,152 @@
+"""The seed's half-car built from a third-party multibody code's parts (Exudyn), a test world that
+shares no equations with jaxdrift (``pip install -e ".[multibody]"``; never used by jaxdrift itself).
+
+Parts (Exudyn 1.13): the chassis a 2D rigid body (``NodeRigidBody2D`` + ``ObjectRigidBody2D``, mass
+m3, inertia I), each wheel a point mass (``NodePoint2D`` + ``MassPoint2D``), each suspension a
+Cartesian spring-damper acting vertically between the wheel and the chassis point at its lever
+(b ahead, a behind), each tyre a Cartesian spring-damper from a ground point whose vertical
+force follows the road under the tyre (a spring user function), gravity a mass-proportional load.
+The plane's Y axis is the paper's z (down), and the body's rotation is minus the paper's pitch; the
+suspension springs carry the static preload as the paper's do (no offset). Integrated by Exudyn's
+generalized-alpha solver (spectral radius 1, no numerical damping) at ``substeps`` fixed steps per
+output sample.
+
+``python benchmarks/validation/exudyn_halfcar.py`` compares it with jaxdrift's half-car
+(``jaxdrift.models._halfcar.road_driven_rhs``, integrated by scipy at rtol 1e-10) on one road and
+writes ``benchmarks/results/exudyn-halfcar.json``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(os.path.dirname(HERE)))
+
+from benchmarks.validation import gen_vehicle as gv  # noqa: E402
+
+
+def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float, substeps: int = 10) -> dict:
+    """Heave, pitch, wheel travel and tyre forces at ``fs`` on [0, t_end] (t = 0: static equilibrium)."""
+    import exudyn as exu
+    from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
+                                      MarkerNodePosition, MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
+                                      ObjectRigidBody2D, SensorNode)
+
+    a, b, g = p["a"], p["b"], p["g"]
+    z1, z2, z3, beta = gv.equilibrium(p)[:4]
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    n3 = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[0.0, 0.0, 0.0], initialCoordinates=[0.0, z3, -beta]))
+    body = mbs.AddObject(ObjectRigidBody2D(mass=p["m3"], inertia=p["I"], nodeNumber=n3))
+    wheels = []
+    for x, z, m in ((b, z1, p["m1"]), (-a, z2, p["m2"])):
+        n = mbs.AddNode(NodePoint2D(referenceCoordinates=[x, 0.0], initialCoordinates=[0.0, z]))
+        wheels.append((n, mbs.AddObject(MassPoint2D(mass=m, nodeNumber=n))))
+    for obj in (body, wheels[0][1], wheels[1][1]):
+        mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, g, 0.0]))
+    sensors = [mbs.AddSensor(SensorNode(nodeNumber=n3, storeInternal=True, writeToFile=False,
+                                        outputVariableType=exu.OutputVariableType.Coordinates))]
+    for i, ((n, _), x, lever) in enumerate(zip(wheels, (b, -a), (b, -a))):
+        mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
+        mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[lever, 0.0, 0.0]))
+        k, d = (p["k3"], p["d3"]) if i == 0 else (p["k4"], p["d4"])
+        # the wheel first: displacement chassis point - wheel = the paper's spring travel s_i
+        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, k, 0.0], damping=[0.0, d, 0.0]))
+        ground = mbs.AddNode(NodePointGround(referenceCoordinates=[x, 0.0, 0.0]))
+        mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=ground))
+        kt, dt_ = (p["k1"], p["d1"]) if i == 0 else (p["k2"], p["d2"])
+        lag = 0.0 if i == 0 else a + b
+
+        def tyre(mbs_, t, item, u, du, k_, d_, off, kt=kt, dt_=dt_, lag=lag):
+            e, de = road(x0 + v * t - lag)
+            return [0.0, kt * (u[1] - e) + dt_ * (du[1] - v * de), 0.0]
+        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, kt, 0.0], damping=[0.0, dt_, 0.0],
+                                            springForceUserFunction=tyre))
+        sensors.append(mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
+                                                outputVariableType=exu.OutputVariableType.Coordinates)))
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    n_out = int(round(t_end * fs))
+    s.timeIntegration.numberOfSteps = n_out * substeps
+    s.timeIntegration.endTime = n_out / fs
+    s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
+    s.timeIntegration.verboseMode = 0
+    s.solution.file.write = False
+    s.solution.sensors.writePeriod = 1.0 / fs
+    exu.SolveDynamic(mbs, s)
+    ch = mbs.GetSensorStoredData(sensors[0])
+    w1 = mbs.GetSensorStoredData(sensors[1])
+    w2 = mbs.GetSensorStoredData(sensors[2])
+    t = ch[:, 0]
+    return {"t": t, "z3": ch[:, 2], "beta": -ch[:, 3], "z1": w1[:, 2], "z2": w2[:, 2]}
+
+
+def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float = 5.0, fs: float = 1000.0,
+            substeps: int = 10) -> dict:
+    """Exudyn's half-car against jaxdrift's equations on one road: the largest differences in heave,
+    pitch and wheel travel, against each signal's range."""
+    from scipy.integrate import solve_ivp
+
+    from jaxdrift.io._csvio import DEFAULT_MODEL
+    from jaxdrift.models._halfcar import road_driven_rhs
+    from jaxdrift.models._params import HalfCarParams
+
+    p = {k: float(DEFAULT_MODEL[k]) for k in gv.KEYS}
+    P = HalfCarParams(**p)
+    x0 = -1.0
+    road = gv.FilteredRoad(np.random.default_rng(seed), road_class, x0 + v * (t_end + 0.5) + 1.0)
+    t0 = time.time()
+    ex = simulate_exudyn(p, road, v, x0, t_end, fs, substeps)
+    wall = time.time() - t0
+
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+    f = jax.jit(lambda t, y, e, de: road_driven_rhs(t, y, P, (e[0], e[1]), (de[0], de[1])))
+
+    def rhs(t, y):
+        x1 = x0 + v * t
+        e1, de1 = road(x1)
+        e2, de2 = road(x1 - p["a"] - p["b"])
+        return np.asarray(f(t, y, np.array([e1, e2]), np.array([v * de1, v * de2])), float)
+
+    sol = solve_ivp(rhs, (0.0, float(ex["t"][-1])), gv.equilibrium(p), method="DOP853", rtol=1e-10, atol=1e-12,
+                    dense_output=True)
+    y = sol.sol(ex["t"])
+    ref = {"z1": y[0], "z2": y[1], "z3": y[2], "beta": y[3]}
+    out = {}
+    for k, r in ref.items():
+        out[k] = {"max_abs_diff": float(np.max(np.abs(ex[k] - r))), "range": float(np.ptp(r)),
+                  "relative": float(np.max(np.abs(ex[k] - r)) / np.ptp(r))}
+    return {"road_class": road_class, "speed_m_s": v, "duration_s": t_end, "fs_hz": fs, "substeps": substeps,
+            "exudyn_wall_s": wall, "signals": out}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--duration", type=float, default=20.0)
+    ap.add_argument("--substeps", type=int, default=10)
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results", "exudyn-halfcar.json"))
+    a = ap.parse_args(argv)
+    import exudyn
+
+    res = compare(t_end=a.duration, substeps=a.substeps)
+    res.update(machine=platform.platform(), python=platform.python_version(), exudyn=exudyn.__version__)
+    with open(a.out, "w") as fh:
+        json.dump(res, fh, indent=1)
+    for k, s in res["signals"].items():
+        print(f"{k}: max |exudyn - jaxdrift| = {s['max_abs_diff']:.3g} ({s['relative']:.2g} of its range)")
+    print(f"Exudyn: {res['exudyn_wall_s']:.1f} s for {a.duration:g} s at {res['fs_hz']:g} Hz x {a.substeps} steps")
+
+
+if __name__ == "__main__":
+    main()
