@@ -64,7 +64,38 @@ def improvement(prob: _Problem, fit: Fit, i: int, res1=None) -> dict:
     h = len(a) // 2
     return {"channel": ch, "without": _rms(a), "with": _rms(b),
             "halves": [(_rms(a[:h]), _rms(b[:h])), (_rms(a[h:]), _rms(b[h:]))],
-            "halves_t": [half_t(a[:h], b[:h]), half_t(a[h:], b[h:])], "whole_t": half_t(a, b)}
+            "halves_t": [half_t(a[:h], b[:h]), half_t(a[h:], b[h:])], "whole_t": half_t(a, b),
+            "out_of_sample_t": out_of_sample_t(a, b)}
+
+
+#: the run is cut into this many stretches for the out-of-sample check (alternate ones fit, the
+#: others check)
+OOS_STRETCHES = 16
+
+
+def out_of_sample_t(without: np.ndarray, with_: np.ndarray) -> float:
+    """The cause's drop of the squared residual on stretches it was not sized on, in standard
+    errors. The run is cut into ``OOS_STRETCHES`` stretches; the cause's size is refitted on the
+    even ones alone (along the straight line from ``without``, no correction, to ``with_``, the
+    whole run's: the residual is linear in a small correction) and its drop measured on the odd
+    ones, and the other way round; ``t`` is the sum of the drops over their spread between
+    stretches. A cause fitted to noise or to the comparison's own error improves the stretches it
+    was sized on and makes the others worse (its expected drop there is negative); a true one
+    improves both. +inf where every stretch drops by the same."""
+    a = without.astype(float)
+    d = a - with_.astype(float)
+    parts = np.array_split(np.arange(len(a)), OOS_STRETCHES)
+    if len(parts[-1]) < 2:
+        return math.inf
+    sets = (np.concatenate(parts[0::2]), np.concatenate(parts[1::2]))
+    scale = []
+    for idx in sets:
+        den = float(d[idx] @ d[idx])
+        scale.append(float(a[idx] @ d[idx]) / den if den > 0 else 0.0)
+    drops = np.array([float(a[k] @ a[k]) - float(np.sum((a[k] - scale[1 - j % 2] * d[k]) ** 2))
+                      for j, k in enumerate(parts)])
+    se = float(np.std(drops, ddof=1) * math.sqrt(len(drops)))
+    return float(drops.sum() / se) if se > 0 else float(np.sign(drops.sum()) * math.inf)
 
 
 def holds(imp: dict) -> bool:
@@ -91,11 +122,14 @@ def explained(imp: dict) -> float:
 
 def failure(imp: dict, cause, theta: float, pipe) -> str | None:
     """Why a selected cause is not confirmed, or None: ``"halves"`` (clearly higher on the whole run
-    or a half: :func:`holds`), ``"share"`` (it explains less of its channel's residual than
+    or a half: :func:`holds`), ``"out_of_sample"`` (sized on alternate stretches, it does not
+    improve the others: :func:`out_of_sample_t`), ``"share"`` (it explains less of its channel's residual than
     ``SHARE_MIN`` times what is left: a small unexplained residual, not a cause) or ``"margin"``
     (within its kind's ``confirm_margin`` of no effect)."""
     if not holds(imp):
         return "halves"
+    if imp.get("out_of_sample_t", math.inf) <= 0.0:
+        return "out_of_sample"
     if abs(theta) <= cause.kind.margin(pipe):
         return "margin"
     if explained(imp) < SHARE_MIN:

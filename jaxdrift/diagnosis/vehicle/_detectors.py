@@ -94,6 +94,10 @@ def force_top_band_white(run) -> bool:
 SHARED_LAG_MAX_S = 2.5
 #: family-wise false-alarm rate of the shared-content test over all the lags it searches
 SHARED_ALPHA = 0.01
+#: shared content counts where it holds at least this share of the 4th differences' power (the
+#: correlation: content c in both forces over noise n gives rho = c / (c + n)); below it, it adds
+#: less than 5 % to the level
+SHARED_MIN_SHARE = 0.1
 
 
 def force_top_band_shared(run) -> tuple[float, float, float] | None:
@@ -124,7 +128,7 @@ def force_top_band_shared(run) -> tuple[float, float, float] | None:
     z = float(scipy.stats.norm.isf(SHARED_ALPHA / (2 * (2 * m + 1))))
     thr = z * math.sqrt(2.63 / (n - m))
     j = int(np.argmax(np.abs(c)))
-    if abs(c[j]) <= thr:
+    if abs(c[j]) <= max(thr, SHARED_MIN_SHARE):
         return None
     return (j - m) * run.dt, float(c[j]), thr
 

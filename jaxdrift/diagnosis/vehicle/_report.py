@@ -413,6 +413,11 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
                           f"({100 * imp['explained']:.0f} % of what is left, the comparison's noise and error "
                           f"among it); a confirmed cause explains at least {100 * imp['share_min']:.0f} % of what it "
                           "leaves")
+        elif why == "out_of_sample":
+            reasons[c] = (f"not confirmed, left out of the extended model: sized on every other stretch of the run "
+                          f"(16 in all), it does not improve the {imp['channel']} residual on the stretches it was "
+                          f"not sized on (their drop is {imp['out_of_sample_t']:.2g} standard errors): it fits "
+                          "what the stretches it was sized on hold, not a cause the whole run shows")
         elif why == "margin":
             reasons[c] = (f"not confirmed, left out of the extended model: its size is within {imp['margin']:.3g} "
                           f"({c.kind.unit}) of no effect, a difference no engineer would act on")
