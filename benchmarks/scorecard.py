@@ -8,6 +8,10 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   its clipped runs (``validation/clip_sweep.py``); ``vehicle-wide/indep`` draws the habits the others
   lack: roads of straight lines between profile points (forces that jump between samples), every
   class at up to 35 m/s, and 0.3-5 N of force noise on half its runs, effect-free;
+- ``vehicle-exudyn/indep``: a third-party multibody code's car (``validation/gen_exudyn.py``,
+  Exudyn): an engine on 8-15 Hz mounts the model given (the rigid car) lacks, with and without a
+  sensor effect; its truth is the sensor effects, so "extra confirmed" counts the false sensor or
+  parameter claims a missing degree of freedom draws;
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep`` and ``attitude-wide/indep``: ``validation/gen_attitude.py``; the wide
@@ -93,6 +97,7 @@ WORLDS = [
     World("vehicle-clipping/indep", "vehicle", "indep_clip", 20261209, 6, 1),
     World("vehicle-wide/indep", "vehicle", "indep_vehicle", 20261216, 32, 3, {"design": "wide"}),
     World("vehicle-standard/own", "vehicle", "own_vehicle", 20261210, 12, 2),
+    World("vehicle-exudyn/indep", "vehicle", "exudyn", 20261217, 12, 1),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
     World("attitude-standard/own", "attitude", "own_attitude", 20261213, 12, 2),
@@ -118,6 +123,10 @@ def cases(world: World) -> list[dict]:
         fn = {"standard": gv.design, "gain_drift": gv.design_gain_drift, "nonlinear": gv.design_nonlinear,
               "crosstalk": gv.design_crosstalk, "wide": gv.design_wide}[o["design"]]
         return fn(world.n, world.seed)
+    if b == "exudyn":
+        from benchmarks.validation import gen_exudyn as ge
+
+        return ge.design(world.n, world.seed)
     if b == "indep_clip":
         from benchmarks.validation import gen_vehicle as gv
 
@@ -202,6 +211,18 @@ def run_case(world_name: str, case: dict) -> dict:
             paths = gv.make_run(full, tmp)
             rep = _diagnose_vehicle(paths["csv"], paths["model"])
             rec.update(stratum=case["stratum"], truth=full["effects"], where=_where("vehicle", full))
+        elif b == "exudyn":
+            from benchmarks.validation import gen_exudyn as ge
+
+            paths = ge.make_run(case, tmp)
+            full = paths["case"]
+            rep = _diagnose_vehicle(paths["csv"], paths["model"])
+            e = full["engine"]
+            rec.update(stratum=case["stratum"], truth=full["effects"], model_form=e,
+                       where=(f"{full['vehicle_kind']} engine {100 * e['mass'] / full['car']['m3']:.0f} % on "
+                              f"{e['frequency_hz']:.1f} Hz mounts {e['x']:.2f} m ahead; road {full['road_class']} "
+                              f"{full['road_interp']} {full['speed']:.0f} m/s {full['fs']:g} Hz {full['duration']:g} s "
+                              f"{full['channel_set']}"))
         elif b == "own_vehicle":
             from jaxdrift.io._csvio import DEFAULT_MODEL, VehicleRun
             from jaxdrift.studies import _rungen as rg

@@ -34,15 +34,23 @@ sys.path.insert(0, os.path.dirname(os.path.dirname(HERE)))
 from benchmarks.validation import gen_vehicle as gv  # noqa: E402
 
 
-def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float, substeps: int = 10) -> dict:
-    """Heave, pitch, wheel travel and tyre forces at ``fs`` on [0, t_end] (t = 0: static equilibrium)."""
+def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float, substeps: int = 10,
+                    engine: dict | None = None, fine: bool = False) -> dict:
+    """Chassis heave (at its own centre of mass) and pitch, wheel travel and rates at ``fs`` on
+    [0, t_end] (t = 0: static equilibrium); ``fine``: at every solver step instead. ``engine``: a
+    mass ``mass`` on a vertical mount (``k``, ``d``) at ``x`` ahead of the chassis's centre of
+    mass, in static equilibrium at the start (its weight carried by the chassis's, so the wheel
+    loads are those of the rigid car of total mass); adds ``ze``, its height."""
     import exudyn as exu
     from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
                                       MarkerNodePosition, MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
                                       ObjectRigidBody2D, SensorNode)
 
     a, b, g = p["a"], p["b"], p["g"]
-    z1, z2, z3, beta = gv.equilibrium(p)[:4]
+    rigid = p if engine is None else rigid_equivalent(p, engine)
+    z1, z2, zc, beta = gv.equilibrium(rigid)[:4]
+    xc = 0.0 if engine is None else engine["mass"] * engine["x"] / (p["m3"] + engine["mass"])
+    z3 = zc + xc * math.sin(beta)  # the chassis body's own centre of mass, xc behind the whole car's
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
     n3 = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[0.0, 0.0, 0.0], initialCoordinates=[0.0, z3, -beta]))
@@ -51,10 +59,23 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     for x, z, m in ((b, z1, p["m1"]), (-a, z2, p["m2"])):
         n = mbs.AddNode(NodePoint2D(referenceCoordinates=[x, 0.0], initialCoordinates=[0.0, z]))
         wheels.append((n, mbs.AddObject(MassPoint2D(mass=m, nodeNumber=n))))
-    for obj in (body, wheels[0][1], wheels[1][1]):
+    bodies = [body, wheels[0][1], wheels[1][1]]
+    if engine is not None:
+        ye = z3 - engine["x"] * math.sin(beta) + engine["mass"] * g / engine["k"]
+        ne = mbs.AddNode(NodePoint2D(referenceCoordinates=[engine["x"], 0.0], initialCoordinates=[0.0, ye]))
+        bodies.append(mbs.AddObject(MassPoint2D(mass=engine["mass"], nodeNumber=ne)))
+        mbs.AddObject(CartesianSpringDamper(
+            markerNumbers=[mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[engine["x"], 0.0, 0.0])),
+                           mbs.AddMarker(MarkerNodePosition(nodeNumber=ne))],
+            stiffness=[0.0, engine["k"], 0.0], damping=[0.0, engine["d"], 0.0]))
+    for obj in bodies:
         mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, g, 0.0]))
-    sensors = [mbs.AddSensor(SensorNode(nodeNumber=n3, storeInternal=True, writeToFile=False,
-                                        outputVariableType=exu.OutputVariableType.Coordinates))]
+    def sensor(node, what):
+        return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
+                                        outputVariableType=getattr(exu.OutputVariableType, what)))
+    sensors = [sensor(n3, "Coordinates")]
+    if engine is not None:
+        sensors.append(sensor(ne, "Coordinates"))
     for i, ((n, _), x, lever) in enumerate(zip(wheels, (b, -a), (b, -a))):
         mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
         mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[lever, 0.0, 0.0]))
@@ -71,8 +92,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
             return [0.0, kt * (u[1] - e) + dt_ * (du[1] - v * de), 0.0]
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, kt, 0.0], damping=[0.0, dt_, 0.0],
                                             springForceUserFunction=tyre))
-        sensors.append(mbs.AddSensor(SensorNode(nodeNumber=n, storeInternal=True, writeToFile=False,
-                                                outputVariableType=exu.OutputVariableType.Coordinates)))
+        sensors += [sensor(n, "Coordinates"), sensor(n, "Coordinates_t")]
     mbs.Assemble()
     s = exu.SimulationSettings()
     n_out = int(round(t_end * fs))
@@ -81,13 +101,25 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
     s.timeIntegration.verboseMode = 0
     s.solution.file.write = False
-    s.solution.sensors.writePeriod = 1.0 / fs
+    s.solution.sensors.writePeriod = 1.0 / fs / (substeps if fine else 1)
     exu.SolveDynamic(mbs, s)
-    ch = mbs.GetSensorStoredData(sensors[0])
-    w1 = mbs.GetSensorStoredData(sensors[1])
-    w2 = mbs.GetSensorStoredData(sensors[2])
-    t = ch[:, 0]
-    return {"t": t, "z3": ch[:, 2], "beta": -ch[:, 3], "z1": w1[:, 2], "z2": w2[:, 2]}
+    data = [mbs.GetSensorStoredData(k) for k in sensors]
+    ch = data[0]
+    out = {"t": ch[:, 0], "z3": ch[:, 2], "beta": -ch[:, 3]}
+    if engine is not None:
+        out["ze"] = data[1][:, 2]
+        data = data[1:]
+    out.update(z1=data[1][:, 2], v1=data[2][:, 2], z2=data[3][:, 2], v2=data[4][:, 2])
+    return out
+
+
+def rigid_equivalent(p: dict, engine: dict) -> dict:
+    """The rigid car an engine on mounts makes: total mass, centre of mass moved ``xc`` forward
+    (``b`` shorter, ``a`` longer by it), inertia about the new centre (parallel axes)."""
+    me, xe = engine["mass"], engine["x"]
+    M = p["m3"] + me
+    xc = me * xe / M
+    return {**p, "m3": M, "I": p["I"] + p["m3"] * xc * xc + me * (xe - xc) ** 2, "a": p["a"] + xc, "b": p["b"] - xc}
 
 
 def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float = 5.0, fs: float = 1000.0,

@@ -1,0 +1,114 @@
+"""A test world nobody here wrote the equations of: runs of a car whose engine sits on mounts,
+simulated by a third-party multibody code (Exudyn, ``exudyn_halfcar.py``), diagnosed against the
+rigid car of the same total mass, centre of mass and inertia (what a user's model is). The engine
+is a degree of freedom the model lacks: the runs measure what the diagnosis says about a model-form
+error (issue 48), and whether sensor effects hidden beside it are still found.
+
+A case (``design``): a vehicle of ``gen_vehicle.VEHICLES`` (each value x 0.9-1.1), an engine of
+8-12 % of the body's mass on mounts of 8-15 Hz (damping ratio 0.05-0.2) at the centre of mass or
+0.5-1.0 of the front lever ahead of it, an ISO 8608 road of class B-D at 10-25 m/s (straight lines
+between profile points on half the runs), 500 or 1000 Hz, 10-20 s, pitch and heave (and on half the
+runs both spring travels) measured, 0.5-3 N of force noise, and on half the runs one sensor effect
+(an offset, scale or delay on f1 or f2, ``gen_vehicle.draw_effect``). The files follow
+docs/measured-data.md as ``gen_vehicle`` writes them; the truth lists the sensor effects and the
+force noise (the scorecard's truth) and the engine under ``model_form``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from benchmarks.validation import gen_vehicle as gv
+from benchmarks.validation.exudyn_halfcar import rigid_equivalent, simulate_exudyn
+
+SUBSTEPS = 10
+
+
+def design(n: int, seed: int) -> list[dict]:
+    """``n`` cases: half effect-free (force noise only), half one sensor effect; shuffled."""
+    plan = [("noise", ())] * (n - n // 2) + [("single", (gv.SENSOR[i % len(gv.SENSOR)],)) for i in range(n // 2)]
+    rng = np.random.default_rng([seed, 0xE40])
+    order = rng.permutation(len(plan))
+    return [{"index": i, "stratum": plan[j][0], "what": [list(w) for w in plan[j][1]], "seed": int(rng.integers(2**31)),
+             "design": "exudyn"} for i, j in enumerate(order)]
+
+
+def make_case(case: dict) -> dict:
+    rng = np.random.default_rng(case["seed"])
+    vkind = str(rng.choice(sorted(gv.VEHICLES)))
+    car = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
+    car["g"] = gv.G
+    me = float(rng.uniform(0.08, 0.12) * car["m3"])
+    f_mount = float(rng.uniform(8.0, 15.0))
+    zeta = float(rng.uniform(0.05, 0.2))
+    xe = 0.0 if rng.random() < 0.5 else float(rng.uniform(0.5, 1.0) * car["b"])
+    engine = {"mass": me, "x": xe, "k": me * (2 * math.pi * f_mount) ** 2, "d": 2 * zeta * me * 2 * math.pi * f_mount,
+              "frequency_hz": f_mount, "damping_ratio": zeta}
+    cls = str(rng.choice(["B", "C", "D"]))
+    speed = float(rng.uniform(10.0, 25.0))
+    fs = float(rng.choice([500.0, 1000.0]))
+    dur = float(round(rng.uniform(10.0, 20.0), 1))
+    chans = ["beta", "z3"] + (["s1", "s2"] if rng.random() < 0.5 else [])
+    model = rigid_equivalent(car, engine)
+    effects = [gv.draw_effect(rng, *w, model, duration=dur) for w in case["what"]]
+    effects.append({"cause": "force_noise", "value": float(math.exp(rng.uniform(math.log(0.5), math.log(3.0))))})
+    return {**case, "vehicle_kind": vkind, "car": car, "engine": engine, "model": model, "road_class": cls,
+            "road_interp": str(rng.choice(["spline7", "linear"])), "speed": speed, "fs": fs, "duration": dur,
+            "channels": chans, "channel_set": "_".join(chans), "precision": int(rng.integers(7, 10)), "t0": 0.0,
+            "lead_in": float(rng.uniform(0.2, 0.5)), "effects": effects, "motion_noise": {},
+            "column_order_seed": int(rng.integers(2**31)), "road_seed": int(rng.integers(2**31)),
+            "noise_seed": int(rng.integers(2**31))}
+
+
+def generate(case: dict) -> dict:
+    """The measured columns of a case (gen_vehicle's contract)."""
+    car, eng, v, fs, T = case["car"], case["engine"], case["speed"], case["fs"], case["duration"]
+    x0 = -v * case["lead_in"]
+    road = gv.FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.2) + 1.0,
+                           interp=case["road_interp"])
+    sim = simulate_exudyn(car, road, v, x0, T, fs, SUBSTEPS, engine=eng, fine=True)
+    tf = sim["t"]
+    L = car["a"] + car["b"]
+    e1, de1 = np.array([road(x0 + v * t) for t in tf]).T
+    e2, de2 = np.array([road(x0 + v * t - L) for t in tf]).T
+    fine = {"f1": car["k1"] * (sim["z1"] - e1) + car["d1"] * (sim["v1"] - v * de1),
+            "f2": car["k2"] * (sim["z2"] - e2) + car["d2"] * (sim["v2"] - v * de2)}
+    xc = eng["mass"] * eng["x"] / case["model"]["m3"]
+    sb = np.sin(sim["beta"])
+    fine["z3"] = sim["z3"] - xc * sb  # the rigid car's centre of mass, on the chassis
+    fine["beta"] = sim["beta"]
+    fine["s1"] = sim["z3"] - sim["z1"] - car["b"] * sb
+    fine["s2"] = sim["z3"] - sim["z2"] + car["a"] * sb
+    n = int(round(T * fs)) + 1
+    tau = np.arange(n) / fs
+    idx = np.arange(n) * SUBSTEPS
+    cols = {"t": case["t0"] + tau}
+    delay = {e["channel"]: e["value"] for e in case["effects"] if e["cause"] == "force_delay"}
+    for ch in ("f1", "f2"):
+        x = CubicSpline(tf, fine[ch])(np.maximum(tau - delay[ch], 0.0)) if ch in delay else fine[ch][idx]
+        for e in case["effects"]:
+            if e.get("channel") == ch and e["cause"] == "force_scale":
+                x = x * e["value"]
+        for e in case["effects"]:
+            if e.get("channel") == ch and e["cause"] == "force_offset":
+                x = x + e["value"]
+        cols[ch] = x
+    nrng = np.random.default_rng(case["noise_seed"])
+    sig = next(e["value"] for e in case["effects"] if e["cause"] == "force_noise")
+    for ch in ("f1", "f2"):
+        cols[ch] = cols[ch] + sig * nrng.standard_normal(n)
+    for c in case["channels"]:
+        cols[c] = fine[c][idx]
+    return cols
+
+
+def make_run(case: dict, out_dir: str, name: str | None = None) -> dict:
+    """Draw (if needed), simulate and write one run (``gen_vehicle.write_run``); returns the paths."""
+    if "model" not in case:
+        case = make_case(case)
+    cols = generate(case)
+    paths = gv.write_run(out_dir, name or f"exudyn_{case['index']:04d}", case, cols)
+    return {**paths, "case": case}
