@@ -129,8 +129,9 @@ def consistency(w, dt, q_ref, anchors, t, valid=None, lam=0.0):
     use, spans, still = _flag(gamma[idx], rho[idx], dti[idx], t[anchors[:-1]][idx], t[anchors[1:]][idx])
     conv = converging(rho[idx] - gamma[idx], rotation_matrix_np(q_ref[anchors[:-1][idx]]), t[anchors[:-1]][idx],
                       t[anchors[1:]][idx])
-    if conv is not None:
-        use[conv[0]] = False
+    if conv is not None:  # a decay about a global axis leaves that axis's cells out, about a body axis all
+        cols = [AXES.index(conv[1]["axis"])] if conv[1]["frame"] == "global" else [0, 1, 2]
+        use[np.ix_(conv[0], cols)] = False
         spans = sorted(spans + [conv[1]], key=lambda s: (s["t0"], s["axis"]))
     use_all[idx], still_all[idx] = use, still
     return use_all, spans, still_all
