@@ -76,9 +76,9 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     sensors = [sensor(n3, "Coordinates")]
     if engine is not None:
         sensors.append(sensor(ne, "Coordinates"))
-    for i, ((n, _), x, lever) in enumerate(zip(wheels, (b, -a), (b, -a))):
+    for i, ((n, _), x) in enumerate(zip(wheels, (b, -a))):  # each wheel under its chassis point
         mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
-        mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[lever, 0.0, 0.0]))
+        mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[x, 0.0, 0.0]))
         k, d = (p["k3"], p["d3"]) if i == 0 else (p["k4"], p["d4"])
         # the wheel first: displacement chassis point - wheel = the paper's spring travel s_i
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, k, 0.0], damping=[0.0, d, 0.0]))

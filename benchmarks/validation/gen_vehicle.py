@@ -164,7 +164,6 @@ class FilteredRoad:
         k = int(x / self.dx)
         if k >= self.n - 1:
             raise ValueError(f"road evaluated at x={x} beyond its end")
-        u = x - k * self.dx
         if self.interp == "linear":
             for kk in self.pinned:  # a stretch between kinks: each wheel stays in its own cell
                 if (kk - 1e-6) * self.dx <= x <= (kk + 1 + 1e-6) * self.dx:
@@ -173,6 +172,7 @@ class FilteredRoad:
             h0, h1 = self.h[k], self.h[k + 1]
             slope = (h1 - h0) / self.dx
             return h0 + slope * (x - k * self.dx), slope
+        u = x - k * self.dx
         c = self.coef[k]
         h = c[7]
         dh = 7.0 * c[7]

@@ -21,7 +21,9 @@ reference, both as rates in the global frame:
   :data:`REF_JUMP` and 10 robust standard deviations is a jump of the reference: a reset where the
   attitude stays stepped, an outlier (kind ``"spike"``) where the discrepancy comes back within
   :data:`SPIKE_SPAN` intervals (an optical marker's jitter: the reference's own heavy-tailed noise,
-  not an inconsistency).
+  not an inconsistency);
+- an estimator still converging at the start of the run (:func:`converging`: the discrepancy
+  decays like ``exp(-t / tau)`` from a degree or more, and prefers the start) is left out there.
 
 The flagged (interval, axis) cells are left out of the reference fit; the spans other than spikes
 are reported as ``reference_inconsistent`` findings, the spikes in a note.

@@ -80,14 +80,15 @@ WHITE_TOL = 0.1
 def force_top_band_white(run) -> bool:
     """True when both forces' k-th differences give the same white-noise level at every order of
     ``WHITE_ORDERS`` (within ``WHITE_TOL`` plus 5/sqrt(n)): the top of the band then holds noise
-    alone and the 4th-difference level estimates it; otherwise the forces carry real content
-    there and that level is only an upper bound."""
+    alone and the 4th-difference level estimates it, unless the two forces share it
+    (:func:`force_top_band_shared`, which the caller asks once); otherwise the forces carry real
+    content there and that level is only an upper bound."""
     tol = 1.0 + WHITE_TOL + 5.0 / math.sqrt(max(run.n, 1))
     for ch in FORCE_CHANNELS:
         lv = [_diff_sigma(run[ch], k) for k in WHITE_ORDERS]
         if min(lv) <= 0.0 or max(lv) / min(lv) > tol:
             return False
-    return force_top_band_shared(run) is None
+    return True
 
 
 #: how far apart the two wheels may meet the same road [s] (a 4 m wheelbase at 1.6 m/s)

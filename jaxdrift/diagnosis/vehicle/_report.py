@@ -11,6 +11,7 @@ from ...io._corrections import NO_CORRECTION, Corrections
 from ...io._csvio import MODEL_KEYS
 from ...io._timebase import run_block
 from ._causes import FORCE_CHANNELS, FORCE_NOISE, FORCE_OFFSET, PARAMETER_ERROR, Cause, _apply, _finding_for, _practical
+from ._confirm import OOS_STRETCHES
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_shared,
                          force_top_band_white,
                          lowband_cutoff, written_digits)
@@ -154,7 +155,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                 kind = "upper_bound"
                 src += (f" (at {1.0 / run.dt:.4g} Hz the forces' content near and above the "
                         f"Nyquist frequency reaches both, so its interval starts at 0)")
-            elif force_top_band_white(run):
+            elif shared is None and force_top_band_white(run):
                 kind = "estimate"
                 src += ("; the forces' 4th, 6th and 8th differences agree and the two forces share "
                         "nothing there, so the top of the band holds noise alone and the "
@@ -415,7 +416,7 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
                           "leaves")
         elif why == "out_of_sample":
             reasons[c] = (f"not confirmed, left out of the extended model: sized on every other stretch of the run "
-                          f"(16 in all), it does not improve the {imp['channel']} residual on the stretches it was "
+                          f"({OOS_STRETCHES} in all), it does not improve the {imp['channel']} residual on the stretches it was "
                           f"not sized on (their drop is {imp['out_of_sample_t']:.2g} standard errors): it fits "
                           "what the stretches it was sized on hold, not a cause the whole run shows")
         elif why == "margin":
