@@ -10,8 +10,12 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   class at up to 35 m/s, and 0.3-5 N of force noise on half its runs, effect-free;
 - ``vehicle-exudyn/indep``: a third-party multibody code's car (``validation/gen_exudyn.py``,
   Exudyn): an engine on 8-15 Hz mounts the model given (the rigid car) lacks, with and without a
-  sensor effect; its truth is the sensor effects, so "extra confirmed" counts the false sensor or
-  parameter claims a missing degree of freedom draws;
+  sensor effect; its truth is the mode (``unmodelled_mode`` at the mount frequency) and the sensor
+  effects, so "extra confirmed" counts the false sensor or parameter claims a missing degree of
+  freedom draws;
+- ``vehicle-modes/indep``: the same code's cars of ``gen_exudyn.design_modes``: an engine (8-15 Hz),
+  a seat or payload (3-6 Hz) on its spring, or the rigid car (the effect-free check), each alone, with
+  a sensor effect or with an error of a chassis spring or damper;
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep`` and ``attitude-wide/indep``: ``validation/gen_attitude.py``; the wide
@@ -98,6 +102,7 @@ WORLDS = [
     World("vehicle-wide/indep", "vehicle", "indep_vehicle", 20261216, 32, 3, {"design": "wide"}),
     World("vehicle-standard/own", "vehicle", "own_vehicle", 20261210, 12, 2),
     World("vehicle-exudyn/indep", "vehicle", "exudyn", 20261217, 12, 1),
+    World("vehicle-modes/indep", "vehicle", "exudyn", 20261218, 32, 2, {"design": "modes"}),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
     World("attitude-standard/own", "attitude", "own_attitude", 20261213, 12, 2),
@@ -126,7 +131,7 @@ def cases(world: World) -> list[dict]:
     if b == "exudyn":
         from benchmarks.validation import gen_exudyn as ge
 
-        return ge.design(world.n, world.seed)
+        return (ge.design_modes if o.get("design") == "modes" else ge.design)(world.n, world.seed)
     if b == "indep_clip":
         from benchmarks.validation import gen_vehicle as gv
 
@@ -218,9 +223,13 @@ def run_case(world_name: str, case: dict) -> dict:
             full = paths["case"]
             rep = _diagnose_vehicle(paths["csv"], paths["model"])
             e = full["engine"]
-            rec.update(stratum=case["stratum"], truth=full["effects"], model_form=e,
-                       where=(f"{full['vehicle_kind']} engine {100 * e['mass'] / full['car']['m3']:.0f} % on "
-                              f"{e['frequency_hz']:.1f} Hz mounts {e['x']:.2f} m ahead; road {full['road_class']} "
+            # the mass on its own spring is the run's first systematic effect (its frequency the value)
+            mode = [] if e is None else [{"cause": "unmodelled_mode", "value": e["frequency_hz"]}]
+            body = "rigid car" if e is None else (
+                f"{e.get('kind', 'engine')} {100 * e['mass'] / full['car']['m3']:.0f} % on {e['frequency_hz']:.1f} Hz "
+                f"mounts {e['x']:.2f} m ahead")
+            rec.update(stratum=case["stratum"], truth=mode + full["effects"], model_form=e,
+                       where=(f"{full['vehicle_kind']} {body}; road {full['road_class']} "
                               f"{full['road_interp']} {full['speed']:.0f} m/s {full['fs']:g} Hz {full['duration']:g} s "
                               f"{full['channel_set']}"))
         elif b == "own_vehicle":
@@ -396,6 +405,10 @@ def score_run(kind: str, rec: dict) -> dict:
         if k in NOISE[kind]:
             k += "/" + str(c.get("estimate_kind") or "not reported")
         cov[k] = c["covered"]
+    for e in rec["truth"]:
+        if e["cause"] == "unmodelled_mode":  # the measure: the mode's frequency within 10 %
+            est = next((f.get("estimate") for f in findings if f["cause"] == "unmodelled_mode"), None)
+            cov["unmodelled_mode/within_10pct"] = est is not None and abs(est - e["value"]) <= 0.1 * e["value"]
     out["coverage"] = cov
     out["reference_flags"] = sum(f["cause"] == "reference_inconsistent" for f in findings)
     return out

@@ -321,6 +321,8 @@ ITEM_MUTATION_ALLOWED = {
     "diagnosis.vehicle._confirm:confirm_corrections": "the selection log",
     "diagnosis.vehicle._confirm:confirm_by_resimulation": "the selection log",
     "diagnosis.vehicle._pipeline:select_with_form": "the selection log",
+    "diagnosis.vehicle._mode:find_mode": "the selection log",
+    "diagnosis.vehicle._mode:resize_mode": "the selection log",
     "campaign._campaign:_diagnose_all": "the campaign's log",
     "diagnosis.vehicle._adequacy:_named": "the extended model's nonlinear correction, filled finding by finding",
     "diagnosis.vehicle._residuals:_band_filter": "the residual channels filtered in their own dict",

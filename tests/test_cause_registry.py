@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from jaxdrift.diagnosis import (AbstractCause, ModelParameter, NoiseLevel, RateEffect, SensorEffect, SignalDetector,
+from jaxdrift.diagnosis import (AbstractCause, DegreeOfFreedom, ModelParameter, NoiseLevel, RateEffect, SensorEffect, SignalDetector,
                                 StateForce, registered_causes)
 from jaxdrift.diagnosis.attitude import gyro_forward, gyro_inverse
 from jaxdrift.diagnosis.vehicle import cause_names
@@ -19,7 +19,7 @@ from jaxdrift.diagnosis.vehicle import cause_names
 REGISTRY = registered_causes()
 ALL = [(dom, c) for dom, cs in REGISTRY.items() for c in cs]
 IDS = [f"{dom}:{c!r}:{i}" for i, (dom, c) in enumerate(ALL)]
-CAPABILITIES = (SensorEffect, ModelParameter, StateForce, SignalDetector, NoiseLevel, RateEffect)
+CAPABILITIES = (SensorEffect, ModelParameter, StateForce, SignalDetector, NoiseLevel, RateEffect, DegreeOfFreedom)
 
 
 @pytest.mark.parametrize("dom,cause", ALL, ids=IDS)

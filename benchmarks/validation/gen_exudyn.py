@@ -36,26 +36,79 @@ def design(n: int, seed: int) -> list[dict]:
              "design": "exudyn"} for i, j in enumerate(order)]
 
 
+#: the masses on their own spring a real car carries (``design_modes``): share of the body's mass,
+#: mount frequency [Hz], damping ratio, and place (share of the front lever ``b`` ahead of the
+#: chassis's centre of mass; negative: share of the rear lever ``a`` behind it)
+MOUNTS = {"engine": {"share": (0.08, 0.12), "freq": (8.0, 15.0), "zeta": (0.05, 0.2), "place": (0.5, 1.0)},
+          "seat": {"share": (0.04, 0.08), "freq": (3.0, 6.0), "zeta": (0.15, 0.35), "place": (-0.5, 0.3)}}
+#: the parameter errors of the model-form world (the chassis springs and dampers: the rigid
+#: equivalent carries the rest)
+MODE_PARAMS = ("k3", "k4", "d3", "d4")
+
+
+def design_modes(n: int, seed: int) -> list[dict]:
+    """``n`` cases of the model-form world: 50 % an engine on mounts, 30 % a seat or payload on its
+    spring, 20 % the rigid car (no mode: the effect-free check); each alone with force noise, or
+    with one sensor effect, or (engine and seat) one error of a chassis spring or damper."""
+    rng = np.random.default_rng([seed, 0xE41])
+    plan = []
+    for i in range(n):
+        u = (i + 0.5) / n
+        mount = "engine" if u < 0.5 else ("seat" if u < 0.8 else "rigid")
+        kinds = ("noise", "single") if mount == "rigid" else ("noise", "single", "param")
+        plan.append((mount, kinds[i % len(kinds)]))
+    order = rng.permutation(n)
+    out = []
+    for i, j in enumerate(order):
+        mount, stratum = plan[j]
+        what = [list(gv.SENSOR[int(rng.integers(len(gv.SENSOR)))])] if stratum == "single" else (
+            [["parameter_error", MODE_PARAMS[int(rng.integers(len(MODE_PARAMS)))]]] if stratum == "param" else [])
+        out.append({"index": i, "stratum": f"{mount}/{stratum}", "what": what, "seed": int(rng.integers(2**31)),
+                    "design": "modes", "mount": mount})
+    return out
+
+
+def _mount(rng, car: dict, kind: str) -> dict | None:
+    """A mass on its spring of the kind ``kind`` (``MOUNTS``), or None for the rigid car."""
+    if kind == "rigid":
+        return None
+    m = MOUNTS[kind]
+    me = float(rng.uniform(*m["share"]) * car["m3"])
+    f_mount = float(rng.uniform(*m["freq"]))
+    zeta = float(rng.uniform(*m["zeta"]))
+    u = float(rng.uniform(*m["place"]))
+    xe = u * car["b"] if u >= 0 else u * car["a"]
+    return {"mass": me, "x": xe, "k": me * (2 * math.pi * f_mount) ** 2, "d": 2 * zeta * me * 2 * math.pi * f_mount,
+            "frequency_hz": f_mount, "damping_ratio": zeta, "kind": kind}
+
+
 def make_case(case: dict) -> dict:
     rng = np.random.default_rng(case["seed"])
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     car = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
     car["g"] = gv.G
-    me = float(rng.uniform(0.08, 0.12) * car["m3"])
-    f_mount = float(rng.uniform(8.0, 15.0))
-    zeta = float(rng.uniform(0.05, 0.2))
-    xe = 0.0 if rng.random() < 0.5 else float(rng.uniform(0.5, 1.0) * car["b"])
-    engine = {"mass": me, "x": xe, "k": me * (2 * math.pi * f_mount) ** 2, "d": 2 * zeta * me * 2 * math.pi * f_mount,
-              "frequency_hz": f_mount, "damping_ratio": zeta}
+    if case.get("design") == "modes":
+        engine = _mount(rng, car, case["mount"])
+    else:  # the first world's draws, unchanged
+        me = float(rng.uniform(0.08, 0.12) * car["m3"])
+        f_mount = float(rng.uniform(8.0, 15.0))
+        zeta = float(rng.uniform(0.05, 0.2))
+        xe = 0.0 if rng.random() < 0.5 else float(rng.uniform(0.5, 1.0) * car["b"])
+        engine = {"mass": me, "x": xe, "k": me * (2 * math.pi * f_mount) ** 2,
+                  "d": 2 * zeta * me * 2 * math.pi * f_mount, "frequency_hz": f_mount, "damping_ratio": zeta}
     cls = str(rng.choice(["B", "C", "D"]))
     speed = float(rng.uniform(10.0, 25.0))
     fs = float(rng.choice([500.0, 1000.0]))
     dur = float(round(rng.uniform(10.0, 20.0), 1))
     chans = ["beta", "z3"] + (["s1", "s2"] if rng.random() < 0.5 else [])
-    model = rigid_equivalent(car, engine)
+    model = dict(car) if engine is None else rigid_equivalent(car, engine)
     effects = [gv.draw_effect(rng, *w, model, duration=dur) for w in case["what"]]
+    true_car = dict(car)
+    for e in effects:  # a chassis spring or damper the model has wrong: the car is simulated with the true one
+        if e["cause"] == "parameter_error":
+            true_car[e["parameter"]] = car[e["parameter"]] * e["value"]
     effects.append({"cause": "force_noise", "value": float(math.exp(rng.uniform(math.log(0.5), math.log(3.0))))})
-    return {**case, "vehicle_kind": vkind, "car": car, "engine": engine, "model": model, "road_class": cls,
+    return {**case, "vehicle_kind": vkind, "car": true_car, "engine": engine, "model": model, "road_class": cls,
             "road_interp": str(rng.choice(["spline7", "linear"])), "speed": speed, "fs": fs, "duration": dur,
             "channels": chans, "channel_set": "_".join(chans), "precision": int(rng.integers(7, 10)), "t0": 0.0,
             "lead_in": float(rng.uniform(0.2, 0.5)), "effects": effects, "motion_noise": {},
@@ -76,7 +129,7 @@ def generate(case: dict) -> dict:
     e2, de2 = np.array([road(x0 + v * t - L) for t in tf]).T
     fine = {"f1": car["k1"] * (sim["z1"] - e1) + car["d1"] * (sim["v1"] - v * de1),
             "f2": car["k2"] * (sim["z2"] - e2) + car["d2"] * (sim["v2"] - v * de2)}
-    xc = eng["mass"] * eng["x"] / case["model"]["m3"]
+    xc = 0.0 if eng is None else eng["mass"] * eng["x"] / case["model"]["m3"]
     sb = np.sin(sim["beta"])
     fine["z3"] = sim["z3"] - xc * sb  # the rigid car's centre of mass, on the chassis
     fine["beta"] = sim["beta"]

@@ -57,7 +57,7 @@ from jaxdrift.diagnosis.vehicle import VEHICLE_CAUSES, nonlinear_cause_names  # 
 
 NONLINEAR = nonlinear_cause_names()
 FORM = ("model_form",) + NONLINEAR
-SYSTEMATIC = {"vehicle": tuple(k.name for k in VEHICLE_CAUSES) + FORM,
+SYSTEMATIC = {"vehicle": tuple(k.name for k in VEHICLE_CAUSES) + FORM + ("unmodelled_mode",),
               "attitude": ("gyro_bias", "gyro_scale", "gyro_bias_drift", "sensor_position", "nonrigid")}
 NOISE = {"vehicle": ("force_noise",), "attitude": ("gyro_noise", "accel_noise")}
 #: sizing of the committed sweep (fits ~35 min of one core for 200 vehicle + 100 attitude runs)

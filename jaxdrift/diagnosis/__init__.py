@@ -8,6 +8,7 @@ the report. No other layer imports a module of this package whose name starts wi
 from __future__ import annotations
 
 from ._cause import AbstractCause as AbstractCause
+from ._cause import DegreeOfFreedom as DegreeOfFreedom
 from ._cause import ModelParameter as ModelParameter
 from ._cause import NoiseLevel as NoiseLevel
 from ._cause import RateEffect as RateEffect
@@ -20,7 +21,7 @@ from ._series import vehicle_series as vehicle_series
 from .attitude import run_attitude_diagnosis as run_attitude_diagnosis
 from .vehicle import diagnose_vehicle_run as diagnose_vehicle_run
 
-__all__ = ['AbstractCause', 'ModelParameter', 'NoiseLevel', 'RateEffect', 'SensorEffect', 'SignalDetector', 'StateForce',
+__all__ = ['AbstractCause', 'DegreeOfFreedom', 'ModelParameter', 'NoiseLevel', 'RateEffect', 'SensorEffect', 'SignalDetector', 'StateForce',
            'diagnose_vehicle_run', 'joint_intervals', 'registered_causes', 'robust_diff_sigma',
            'run_attitude_diagnosis', 'vehicle_series']
 
@@ -31,7 +32,8 @@ def registered_causes() -> dict[str, tuple[AbstractCause, ...]]:
     ``"attitude"``. Each is an :class:`AbstractCause`; what it can do is its capability mixins."""
     from .attitude._causes import ATTITUDE_CAUSES
     from .vehicle._causes import FORCE_NOISE, VEHICLE_CAUSES
+    from .vehicle._mode import MODE
     from .vehicle._nonlinear import catalogue, signal_detectors
 
-    vehicle = (*VEHICLE_CAUSES, FORCE_NOISE, *catalogue(), *signal_detectors())
+    vehicle = (*VEHICLE_CAUSES, FORCE_NOISE, *catalogue(), *signal_detectors(), MODE)
     return {"vehicle": vehicle, "attitude": tuple(ATTITUDE_CAUSES)}

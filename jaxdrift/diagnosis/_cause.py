@@ -12,6 +12,8 @@ never for a concrete class, and each concrete cause is final and owns its behavi
   generator simulates, the model the diagnosis corrects).
 - :class:`StateForce`: a force the linear model lacks, a function of its own states, per unit of
   the cause's size (damper asymmetry, progressive spring, bump stop, the bare state terms).
+- :class:`DegreeOfFreedom`: a body the model lacks, with its own motion (a mass on a spring-damper
+  inside the rigid chassis: the unmodelled mode), by what it adds to the residual channels.
 - :class:`SignalDetector`: a cause read off a measured signal by a detector before anything is
   fitted (a tyre that lifts off).
 - :class:`NoiseLevel`: a white-noise level, reported as an estimate or an upper bound.
@@ -29,7 +31,7 @@ from __future__ import annotations
 import abc
 from typing import ClassVar
 
-__all__ = ["AbstractCause", "SensorEffect", "ModelParameter", "StateForce", "SignalDetector", "NoiseLevel",
+__all__ = ["AbstractCause", "SensorEffect", "ModelParameter", "StateForce", "DegreeOfFreedom", "SignalDetector", "NoiseLevel",
            "RateEffect"]
 
 
@@ -82,6 +84,15 @@ class StateForce(abc.ABC):
     @abc.abstractmethod
     def bounds(self, st) -> tuple[float, float]:
         """The plausible range of theta at the states ``st``."""
+
+
+class DegreeOfFreedom(abc.ABC):
+    """Capability: a body the model lacks, with its own motion (a mass on a spring-damper inside
+    the model's rigid chassis): ``residual_response``, what it adds to the residual channels."""
+
+    @abc.abstractmethod
+    def residual_response(self, pipe, mode) -> dict:
+        """The residual channels' part that ``mode`` makes, by channel name."""
 
 
 class SignalDetector(abc.ABC):

@@ -7,6 +7,7 @@ from ._adequacy import assess_model_form
 from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
+from ._mode import carrying, look_for_mode, mode_finding, resize_mode
 from ._confirm import confirm
 from ._problem import _Problem
 from ._report import vehicle_report
@@ -76,16 +77,25 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
     pipe = prob.pipe  # with the channels it compares band-limited
+    # a degree of freedom the model lacks is named first (_mode): the linear causes are chosen on
+    # the model that carries it, so that none of them stands in for it
+    mode_out = look_for_mode(prob, model, log)
+    mode = mode_out["mode"]
+    if mode is not None:
+        prob = prob.with_pipe(carrying(pipe, mode))
     # prob carries a nonlinear cause's force where one is found; form0: the adequacy test of sel0's fit
     prob, sel0, form0 = select_with_form(prob, log)
     sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log)
     fit = sel.fit
     dynamic = len(fit.r) > 2
+    if mode is not None:  # sized again beside the causes chosen
+        mode = resize_mode(prob, fit, mode, log)
+        prob = prob.with_pipe(carrying(prob.pipe, mode))
 
     # the adequacy test of the fitted linear model (_adequacy): the nonlinear causes and model-form
     # findings lead, as the linear findings hold only if the model's form does; their intervals
     # count in the joint level
-    lin = pipe.with_extra(None)
+    lin = prob.pipe.with_extra(None)
     prob_lin = prob.with_pipe(lin)
     p_ext, corr_ext = _apply(model, fit.causes, fit.theta)
     if form0 is not None and fit is sel0.fit:  # the checks kept every cause: tested already
@@ -93,10 +103,12 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     else:
         form = assess_model_form(prob_lin, p_ext, corr_ext, lin.residuals(p_ext, corr_ext), dynamic)
     # residuals before (the model) / after (the extended model, its nonlinear causes included)
-    res0 = lin.residuals(model, NO_CORRECTION)
+    res0 = carrying(lin, None).residuals(model, NO_CORRECTION)
     prob = prob.with_pipe(lin.with_extra(form["extra"]))
     pipe = prob.pipe
     res1 = pipe.residuals(p_ext, corr_ext)
+    form = {**form, "mode": None if mode is None else (mode, mode_finding(prob, mode_out, mode, res0, model)),
+            "notes": form["notes"] + ([] if mode_out["note"] is None else [mode_out["note"]])}
     return vehicle_report(run, model, prob, prob_lin, sel, sel0, held_out, resim_out, form, detected,
                           p_ext, corr_ext, res0, res1, dynamic, with_simulation, plots_dir)
 

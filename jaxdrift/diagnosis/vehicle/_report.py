@@ -502,7 +502,9 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
                       f"comparison's own error.")
     floor_bound = None if (noise["found"] or sigma >= NOISE_CONFIRMED_MIN_N) else FORCE_NOISE.finding(
         sigma, 0.0, b, "upper_bound", floor_text)
-    findings = [{**d.finding(det), "confirmed": True} for d, det in detected] + form["findings"] + findings
+    mode = form.get("mode")
+    findings = ([] if mode is None else [mode[1]]) + [{**d.finding(det), "confirmed": True} for d, det in detected] \
+        + form["findings"] + findings
     findings = _stand_ins(findings, form.get("unseen") or [])
     # logger faults (found by the reader before anything was fitted; the run is their sound part)
     # lead the list: every other finding holds for the sound part only
@@ -521,7 +523,8 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
 
     # extended model and gain
     params_ext = {k: float(p_ext[k]) for k in MODEL_KEYS}
-    gain = residual_gain(prob, res0, res1, bool(fit.causes) or form["extra"] is not None, corrections, dynamic)
+    gain = residual_gain(prob, res0, res1, bool(fit.causes) or form["extra"] is not None or mode is not None,
+                         corrections, dynamic)
     sim_err = enforced_terms(prob_lin, model, res0)
     nonlinear = {k: v for d, det in detected for k, v in d.model_terms(det).items()} | form["correction"]
     sims = {}
@@ -534,7 +537,8 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
         "simulation_error": sim_err,
         "findings": findings,
         "extended_model": {"parameters": params_ext, "corrections": with_detections(corrections, detected).to_json(),
-                           **({"nonlinear": nonlinear} if nonlinear else {})},
+                           **({"nonlinear": nonlinear} if nonlinear else {}),
+                           **({} if mode is None else {"unmodelled_mode": mode[0].extended(p_ext)})},
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
                 "duration_s": float(run.t[-1] - run.t[0]),

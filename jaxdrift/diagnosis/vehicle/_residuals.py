@@ -69,6 +69,10 @@ class ResidualPipeline:
         #: ``with_extra``); ``None``: the linear model
         self.extra = None
         self._extra_cache: dict = {}
+        #: a mass on a spring-damper the model carries besides its rigid body (``with_mode``,
+        #: ``_mode``): its part of the heave and moment channels; ``None``: the rigid body
+        self.unmodelled = None
+        self._mode_parts: dict = {}
 
     # ---- step 1: the prescribed motion on the fine grid
     def _prescribe_pitch(self):
@@ -224,6 +228,16 @@ class ResidualPipeline:
         new = copy.copy(self)
         new.extra = None if extra is None else tuple(np.asarray(d, dtype=float) for d in extra)
         new._extra_cache = {}
+        return new
+
+    def with_mode(self, mode, parts: dict | None = None) -> "ResidualPipeline":
+        """The same pipeline whose model carries ``mode`` (``_mode.Mode``: a mass on a
+        spring-damper inside the rigid body; ``None``: none) with ``parts``, its part of the
+        channels (``_mode.mode_response``, banded as the channels are: it depends on the measured
+        motion alone, not on the model's parameters, so it is computed once)."""
+        new = copy.copy(self)
+        new.unmodelled = mode
+        new._mode_parts = {} if mode is None else dict(parts)
         return new
 
     def _extra_channels(self, p: dict) -> dict:
@@ -443,6 +457,10 @@ class ResidualPipeline:
         if self.extra is not None and not linear_part_only:
             for nm, x in self._extra_channels(p).items():
                 ch[nm] = ch[nm] + x
+        if not linear_part_only:
+            for nm, x in self._mode_parts.items():
+                if nm in ch:
+                    ch[nm] = ch[nm] - x
         ch["static"] = self._static_channel(p, first, linear_part_only)
         U = self.U
         return Residuals(ch, f3[::U], f4[::U])

@@ -1,0 +1,469 @@
+"""A resonance the model cannot make: ``unmodelled_mode`` (``docs/diagnosis.md``, "A missing
+degree of freedom").
+
+A mass ``m`` on a spring-damper (frequency ``f``, damping ratio ``zeta``) at ``x`` ahead of the
+centre of mass (an engine on its mounts, a seat, a payload), inside a model that has it rigidly
+fixed to the chassis (its mass in ``m3`` and its ``m x^2`` in ``I``): with pitch and heave
+measured, what the rigid model gets wrong is exact and linear. The relative travel ``y`` of the
+mass obeys ``y'' + 2 zeta w y' + w^2 y = -a_x`` (``a_x = z3'' - x beta''``, the measured
+chassis acceleration under it), and the enforced heave force (``_residuals``) misses ``-m y''``,
+the enforced moment ``x m y''``: a second-order high-pass of the measured acceleration at ``x``,
+zero far below ``f`` (the mass follows the body), ``m a_x`` far above it (the mass stands still)
+and resonant in between. The wheels do not see it (their motion is simulated under the measured
+chassis), so it shows in the ``heave`` and ``moment`` channels only.
+
+The search (:func:`find_mode`): the two channels' responses to ``z3''`` and ``beta''`` through
+the high-pass, for a grid of frequencies and damping ratios, are regressed on the residual of the
+model as given, with every linear cause's sensitivity as nuisance columns (a mode is named only for
+what no parameter or sensor effect of the model can make); the best grid point is refined
+(frequency, damping, place; the mass by least squares) and tested: its z (sandwich variance of the
+force noise through the model) against the search's Bonferroni level, its mass against a practical
+floor, its frequency inside the searched band, and out of sample: fitted on alternate stretches of
+the record alone, it must lower the residual of the others, with the two halves' frequencies
+agreeing. The interval of the frequency is the wider of the noise's and the halves' disagreement.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import ClassVar, final
+
+import numpy as np
+import scipy.optimize
+import scipy.signal
+import scipy.stats
+
+from .._cause import AbstractCause, DegreeOfFreedom
+from ._detectors import _force_hf_noise
+
+#: the channels a chassis-mounted mass shows in (with pitch and heave prescribed)
+MODE_CHANNELS = ("heave", "moment")
+#: searched band of frequencies [Hz]: from below a seat's to above a chassis bending mode's; the
+#: upper end also at most a fifth of the sampling rate and the channels' comparison band
+F_LO_HZ = 2.0
+F_HI_HZ = 40.0
+N_FREQ = 48
+ZETAS = (0.03, 0.07, 0.15, 0.3)
+#: places tried per frequency in the search's count of tests (the Bonferroni divisor)
+N_PLACES = 8
+#: familywise false-alarm level of the search
+ALPHA = 1e-3
+#: smallest mass worth naming, as a share of the model's body mass
+MASS_MIN = 0.005
+#: the frequencies fitted on the two halves of alternate stretches agree within this share
+FREQ_AGREE = 0.15
+#: stretches of the out-of-sample check
+STRETCHES = 16
+#: a mode explains at least this share of what it leaves (RMS over the weighted rows), as a
+#: confirmed linear cause must (``_confirm.SHARE_MIN``)
+SHARE_MIN = 0.25
+
+
+@final
+class UnmodelledMode(AbstractCause, DegreeOfFreedom):
+    """A mass on a spring-damper the model lacks (the registry's one instance: ``MODE``)."""
+
+    name: ClassVar[str] = "unmodelled_mode"
+    unit: ClassVar[str] = "Hz"
+
+    def residual_response(self, pipe, mode: "Mode") -> dict:
+        return mode_response(pipe, mode)
+
+
+MODE = UnmodelledMode()
+
+
+@dataclass(frozen=True)
+class Mode:
+    """A mass ``mass`` [kg] at ``x`` [m ahead of the centre of mass] on a spring-damper of
+    frequency ``freq_hz`` and damping ratio ``zeta``, inside the model's rigid body."""
+
+    mass: float
+    x: float
+    freq_hz: float
+    zeta: float
+
+    @property
+    def stiffness(self) -> float:
+        return self.mass * (2 * math.pi * self.freq_hz) ** 2
+
+    @property
+    def damping(self) -> float:
+        return 2 * self.zeta * self.mass * 2 * math.pi * self.freq_hz
+
+    def extended(self, p: dict) -> dict:
+        """The extended model's mass and the chassis without it (``p``: the model, whose body
+        carries the mass rigidly): the chassis's mass, its centre of mass behind the model's by
+        ``m x / (m3 - m)`` and its inertia about its own centre of mass."""
+        m3c = p["m3"] - self.mass
+        xc = -self.mass * self.x / m3c
+        return {"mass_kg": self.mass, "x_m": self.x, "stiffness_n_per_m": self.stiffness,
+                "damping_n_s_per_m": self.damping, "frequency_hz": self.freq_hz, "damping_ratio": self.zeta,
+                "chassis": {"m3": m3c, "x_cg_m": xc, "I": p["I"] - self.mass * self.x ** 2 - m3c * xc ** 2}}
+
+
+def _highpass(acc: np.ndarray, f: float, zeta: float, dt: float) -> np.ndarray:
+    """``s^2 / (s^2 + 2 zeta w s + w^2)`` of ``acc`` from rest, exact for an input linear between
+    samples (first-order hold)."""
+    w = 2 * math.pi * f
+    A = np.array([[0.0, 1.0], [-w * w, -2 * zeta * w]])
+    B = np.array([[0.0], [-1.0]])
+    C = np.array([[w * w, 2 * zeta * w]])
+    D = np.array([[1.0]])
+    Ad, Bd, Cd, Dd, _ = scipy.signal.cont2discrete((A, B, C, D), dt, method="foh")
+    num, den = scipy.signal.ss2tf(Ad, Bd, Cd, Dd)
+    return scipy.signal.lfilter(num[0], den, acc)
+
+
+def _basis(pipe, f: float, zeta: float) -> dict:
+    """The heave and moment channels' response (banded as the channels are) to the high-pass of
+    ``z3''`` and ``beta''``: ``{(channel, 'z' | 'b'): array}``."""
+    u = _highpass(pipe.d2z3, f, zeta, pipe.h)
+    v = _highpass(pipe.d2beta, f, zeta, pipe.h)
+    out = {}
+    for tag, sig in (("z", u), ("b", v)):
+        ch = {nm: sig.copy() for nm in MODE_CHANNELS}
+        pipe._band_filter(ch)
+        for nm in MODE_CHANNELS:
+            out[(nm, tag)] = ch[nm]
+    return out
+
+
+def _combine(basis: dict, mass: float, x: float) -> dict:
+    """The channels' part of the mode: heave ``-m y'' = m (u - x v)``, moment ``-x`` that."""
+    h = mass * (basis[("heave", "z")] - x * basis[("heave", "b")])
+    mo = -x * mass * (basis[("moment", "z")] - x * basis[("moment", "b")])
+    return {"heave": h, "moment": mo}
+
+
+def mode_response(pipe, mode: Mode) -> dict:
+    """What ``mode`` adds to the heave and moment residual channels of the rigid model."""
+    return _combine(_basis(pipe, mode.freq_hz, mode.zeta), mode.mass, mode.x)
+
+
+def carrying(pipe, mode: Mode | None):
+    """``pipe`` whose model carries ``mode`` (None: the rigid body)."""
+    return pipe.with_mode(mode, None if mode is None else mode_response(pipe, mode))
+
+
+def can_show(pipe) -> bool:
+    """A mode shows only where pitch and heave are both measured (the acceleration under any place
+    of the body is known)."""
+    return bool(pipe.has_beta and pipe.has_z3)
+
+
+class _Search:
+    """The weighted residual, its nuisance columns and the rows' times, for fitting a mode."""
+
+    def __init__(self, prob, r: np.ndarray, nuisance: np.ndarray, rows: np.ndarray | None = None):
+        self.prob = prob
+        self.pipe = prob.pipe
+        n_all = len(r)
+        self.rows = np.arange(n_all) if rows is None else rows
+        self.r = r[self.rows]
+        N = np.column_stack([nuisance[self.rows], np.ones(len(self.rows))]) if nuisance.size else \
+            np.ones((len(self.rows), 1))
+        self.Q, _ = np.linalg.qr(N)
+        self.rp = self._proj(self.r)
+        self.pos = {}
+        pos = 0
+        for nm in prob.names:
+            self.pos[nm] = (pos, prob.rows[nm])
+            pos += prob.rows[nm]
+        self.n_all = n_all
+        self._cache: dict = {}
+
+    def _proj(self, x):
+        return x - self.Q @ (self.Q.T @ x)
+
+    def weighted(self, parts: dict) -> np.ndarray:
+        """Channel arrays (heave, moment) as the problem's weighted rows (zero elsewhere)."""
+        prob = self.prob
+        w = np.zeros(self.n_all)
+        for nm, x in parts.items():
+            if nm not in self.pos:
+                continue
+            s, ln = self.pos[nm]
+            w[s:s + ln] = np.asarray(x)[prob.skip[nm]:prob.skip[nm] + ln] / prob.noise_std[nm]
+        return w[self.rows]
+
+    def basis(self, f, zeta):
+        key = (round(f, 9), round(zeta, 9))
+        if key not in self._cache:
+            if len(self._cache) > 512:
+                self._cache.clear()
+            self._cache[key] = _basis(self.pipe, f, zeta)
+        return self._cache[key]
+
+    def column(self, f, zeta, x) -> np.ndarray:
+        """The projected weighted column of a unit mass."""
+        return self._proj(self.weighted(_combine(self.basis(f, zeta), 1.0, x)))
+
+    def free_fit(self, f, zeta) -> tuple[float, np.ndarray]:
+        """RSS left by the four free columns (heave/moment x z''/beta'') and their coefficients."""
+        b = self.basis(f, zeta)
+        cols = [self._proj(self.weighted({nm: b[(nm, tag)]})) for nm in MODE_CHANNELS for tag in ("z", "b")]
+        X = np.column_stack(cols)
+        c, *_ = np.linalg.lstsq(X, self.rp, rcond=None)
+        e = self.rp - X @ c
+        return float(e @ e), c
+
+    def profile(self, f, zeta, x) -> tuple[float, float]:
+        """(RSS, mass) at (f, zeta, x), the mass by least squares."""
+        m = self.column(f, zeta, x)
+        mm = float(m @ m)
+        mass = float(m @ self.rp) / mm if mm > 0 else 0.0
+        e = self.rp - mass * m
+        return float(e @ e), mass
+
+
+def _band_hi(pipe) -> float:
+    hi = min(F_HI_HZ, 0.2 / pipe.h)
+    for nm in MODE_CHANNELS:
+        if nm in pipe.band:
+            hi = min(hi, 0.8 * pipe.band[nm][0])
+    return hi
+
+
+def _compared_below(pipe) -> float:
+    """The band the heave and moment residuals are compared in [Hz] (the Nyquist frequency where
+    neither is low-passed)."""
+    return min([0.5 / pipe.h] + [pipe.band[nm][0] for nm in MODE_CHANNELS if nm in pipe.band])
+
+
+def _lever(p) -> float:
+    return 1.5 * max(p["a"], p["b"])
+
+
+def _refine(search: _Search, p: dict, f0: float, z0: float, x0: float) -> Mode:
+    """The mode of least RSS near (f0, z0, x0) (Nelder-Mead over log f, log zeta and x)."""
+    lo, hi = F_LO_HZ, _band_hi(search.pipe)
+    L = _lever(p)
+
+    def unpack(q):
+        f = float(np.clip(math.exp(q[0]), lo, hi))
+        z = float(np.clip(math.exp(q[1]), 0.005, 1.0))
+        x = float(np.clip(q[2], -L, L))
+        return f, z, x
+
+    def obj(q):
+        return search.profile(*unpack(q))[0]
+
+    q0 = np.array([math.log(f0), math.log(z0), x0])
+    simplex = np.vstack([q0, q0 + [0.05, 0.0, 0.0], q0 + [0.0, 0.3, 0.0], q0 + [0.0, 0.0, 0.1 * L]])
+    out = scipy.optimize.minimize(obj, q0, method="Nelder-Mead",
+                                  options={"xatol": 1e-4, "fatol": 1e-9 * max(obj(q0), 1e-300), "maxiter": 400,
+                                           "initial_simplex": simplex})
+    f, z, x = unpack(out.x)
+    return Mode(search.profile(f, z, x)[1], x, f, z)
+
+
+def _scan(search: _Search, p: dict) -> tuple[float, float, float] | None:
+    """The grid point (f, zeta, x) of least RSS with the four free columns."""
+    hi = _band_hi(search.pipe)
+    if hi <= F_LO_HZ * 1.2:
+        return None
+    best = None
+    L = _lever(p)
+    for f in np.geomspace(F_LO_HZ, hi, N_FREQ):
+        for z in ZETAS:
+            rss, c = search.free_fit(f, z)
+            if best is None or rss < best[0]:
+                best = (rss, f, z, c)
+    _, f, z, c = best
+    # the place from the heave coefficients (c_z = m, c_b = -m x)
+    x = float(np.clip(-c[1] / c[0], -L, L)) if c[0] != 0 else 0.0
+    return f, z, x
+
+
+def fit_mode(prob, r: np.ndarray, nuisance: np.ndarray, p: dict, start: Mode | None = None,
+             rows: np.ndarray | None = None) -> tuple[Mode | None, _Search]:
+    """The best mode for the weighted residual ``r`` with ``nuisance`` columns (on ``rows``)."""
+    search = _Search(prob, r, nuisance, rows)
+    if start is None:
+        g = _scan(search, p)
+        if g is None:
+            return None, search
+        start = Mode(0.0, g[2], g[0], g[1])
+    return _refine(search, p, start.freq_hz, start.zeta, start.x), search
+
+
+def _z(search: _Search, mode: Mode, sigma: float) -> tuple[float, float]:
+    """The mass's z (sandwich variance of white force noise of ``sigma`` through the model) and
+    the frequency's standard error (the same sandwich over mass, frequency, damping and place)."""
+    prob = search.prob
+    m = search.column(mode.freq_hz, mode.zeta, mode.x)
+    mm = float(m @ m)
+    full = np.zeros((search.n_all, 1))
+    full[search.rows, 0] = m
+    meat = float(prob.sandwich_meat(full)[0, 0])
+    se_m = sigma * math.sqrt(max(meat, 1e-300)) / mm
+    # the frequency's standard error: finite-difference columns of the four parameters
+    g0 = mode.mass * m
+    cols = [m]
+    for name, step in (("freq_hz", 1e-3 * mode.freq_hz), ("zeta", 1e-3 * max(mode.zeta, 0.01)), ("x", 1e-3)):
+        md = replace(mode, **{name: getattr(mode, name) + step})
+        cols.append((md.mass * search.column(md.freq_hz, md.zeta, md.x) - g0) / step)
+    J = np.column_stack(cols)
+    Jf = np.zeros((search.n_all, J.shape[1]))
+    Jf[search.rows] = J
+    inv = np.linalg.pinv(J.T @ J)
+    cov = sigma ** 2 * inv @ prob.sandwich_meat(Jf) @ inv
+    return mode.mass / se_m, math.sqrt(max(cov[1, 1], 0.0))
+
+
+def _halves(prob, r, nuisance, p, mode: Mode, search: _Search) -> dict:
+    """Out of sample: the mode refitted on alternate stretches of the record alone, its drop of the
+    squared residual on the others (summed over stretches, in standard errors of their spread) and
+    the two fits' frequencies."""
+    t_row = np.concatenate([np.arange(prob.rows[nm]) for nm in prob.names])
+    n_t = max(int(t_row.max()) + 1, 1)
+    stretch = np.minimum(t_row * STRETCHES // n_t, STRETCHES - 1)
+    drops, freqs = [], []
+    for parity in (0, 1):
+        fit_rows = np.flatnonzero(stretch % 2 == parity)
+        md, _ = fit_mode(prob, r, nuisance, p, start=mode, rows=fit_rows)
+        freqs.append(md.freq_hz)
+        e0 = search.rp
+        e1 = search.rp - md.mass * search.column(md.freq_hz, md.zeta, md.x)
+        for k in range(STRETCHES):
+            if k % 2 != parity:
+                sel = stretch == k
+                drops.append(float(e0[sel] @ e0[sel] - e1[sel] @ e1[sel]))
+    d = np.array(drops)
+    se = float(np.std(d, ddof=1) * math.sqrt(len(d)))
+    t = float(d.sum() / se) if se > 0 else float(np.sign(d.sum()) * math.inf)
+    return {"t": t, "freqs": freqs}
+
+
+def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | None = None) -> dict:
+    """Search, size and test a mode in the weighted residual ``r`` of the model ``p`` (nuisance:
+    the linear causes' columns). Returns ``{"mode": Mode | None, "z", "se_f", "halves", "note",
+    "why"}``: ``mode`` set where every test passes."""
+    pipe = prob.pipe
+    out = {"mode": None, "note": None, "why": None}
+    if not can_show(pipe) or not all(nm in prob.names for nm in MODE_CHANNELS):
+        out["note"] = ("Could not show: a mass on its own spring that the model lacks (unmodelled_mode: an engine on "
+                       "mounts, a seat, a payload); looking for one needs measured pitch and heave.")
+        out["why"] = "channels"
+        return out
+    mode, search = fit_mode(prob, r, nuisance, p)
+    if mode is None:
+        out["note"] = (f"Could not show: a resonance the model lacks (unmodelled_mode); the heave and moment "
+                       f"residuals are compared below {_compared_below(pipe):.3g} Hz only, too narrow a band to "
+                       f"look for one.")
+        out["why"] = "band"
+        return out
+    hi = _band_hi(pipe)
+    if hi < F_HI_HZ:
+        out["note"] = (f"Could not show: a resonance the model lacks (unmodelled_mode) above {hi:.3g} Hz: the search "
+                       f"stops there (a fifth of the sampling rate, or below the band the heave and moment "
+                       f"residuals are compared in).")
+    sigma = _force_hf_noise(pipe.run)[0]
+    z, se_f = _z(search, mode, max(sigma, 1e-9))
+    n_tests = N_FREQ * len(ZETAS) * N_PLACES
+    crit = math.sqrt(scipy.stats.chi2.ppf(1 - ALPHA / n_tests, 1))
+    rss0 = float(search.rp @ search.rp)
+    rss1 = search.profile(mode.freq_hz, mode.zeta, mode.x)[0]
+    out.update(mode=None, candidate=mode, z=z, se_f=se_f, crit=crit, rss=(rss0, rss1))
+    why = None
+    if not (z > crit):
+        why = "z"
+    elif mode.mass < MASS_MIN * p["m3"]:
+        why = "mass"
+    elif not (F_LO_HZ * 1.05 < mode.freq_hz < hi / 1.05):
+        why = "edge"
+    elif math.sqrt(max(rss0 - rss1, 0.0)) < SHARE_MIN * math.sqrt(max(rss1, 1e-300)):
+        why = "share"
+    else:
+        halves = _halves(prob, r, nuisance, p, mode, search)
+        out["halves"] = halves
+        f0, f1 = halves["freqs"]
+        if halves["t"] <= 0.0:
+            why = "out_of_sample"
+        elif abs(f0 - f1) > FREQ_AGREE * mode.freq_hz:
+            why = "halves_frequency"
+    if log is not None:
+        log.append(f"unmodelled mode: {mode.freq_hz:.4g} Hz zeta {mode.zeta:.3g} x {mode.x:.3g} m mass "
+                   f"{mode.mass:.4g} kg, z {z:.3g} (crit {crit:.3g}), rss {rss0:.6g} -> {rss1:.6g}"
+                   + (f", halves t {out['halves']['t']:.3g} f {out['halves']['freqs']}" if "halves" in out else "")
+                   + (f": not named ({why})" if why else ": named"))
+    out["why"] = why
+    if why is None:
+        out["mode"] = mode
+    return out
+
+
+def look_for_mode(prob, model: dict, log: list | None = None) -> dict:
+    """:func:`find_mode` on the model as given, every linear cause's sensitivity a nuisance column
+    (a mode is named only for what none of them can make)."""
+    from ._causes import _candidates
+    from ._select import _identifiable
+
+    if not can_show(prob.pipe) or not all(nm in prob.names for nm in MODE_CHANNELS):
+        return find_mode(prob, model, np.zeros(0), np.zeros((0, 0)), log)
+    r0, _ = prob.eval([], [])
+    active, _, Jc = _identifiable(prob, _candidates(prob.pipe))
+    J = np.column_stack([Jc[c] for c in active]) if active else np.zeros((len(r0), 0))
+    return find_mode(prob, model, r0, J, log)
+
+
+def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode:
+    """The mode refitted beside the chosen linear causes (their columns the nuisance, the residual
+    the fitted model's without the mode): the search's nuisance held every linear cause, which takes
+    part of a mode's mass (a body mass error is a mode's far-above-resonance limit)."""
+    from ._causes import _apply
+
+    pipe = carrying(prob.pipe, None)
+    p, corr = _apply(prob.model, fit.causes, fit.theta)
+    r = prob.weighted(pipe.residuals(p, corr))
+    X = fit.X if fit.X is not None and fit.causes else np.zeros((len(r), 0))
+    new, _ = fit_mode(prob.with_pipe(pipe), r, X, p, start=mode)
+    if log is not None:
+        log.append(f"unmodelled mode resized beside {[c.label for c in fit.causes]}: {new.freq_hz:.4g} Hz zeta "
+                   f"{new.zeta:.3g} x {new.x:.3g} m mass {new.mass:.4g} kg")
+    return new
+
+
+#: a channel the mode "shows in": its part there is at least this share of the channel's residual
+SHOWS_SHARE = 0.1
+
+
+def mode_finding(prob, out: dict, mode: Mode, res0, model: dict) -> dict:
+    """The report's ``unmodelled_mode`` finding (confirmed: every test of :func:`find_mode` passed):
+    the frequency with its interval (the wider of 1.96 standard errors and the two halves'
+    disagreement), damping ratio, the channels it shows in, the placement and the evidence."""
+    def rms(x):
+        return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
+
+    parts = mode_response(prob.pipe, mode)
+    shows, drop = [], {}
+    for nm in MODE_CHANNELS:
+        rows = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
+        before = np.asarray(res0.channels[nm])[rows]
+        part = np.asarray(parts[nm])[rows]
+        drop[nm] = (rms(before), rms(before - part))
+        if rms(part) >= SHOWS_SHARE * rms(before):
+            shows.append(nm)
+    f0, f1 = out["halves"]["freqs"]
+    half = max(1.96 * out["se_f"], abs(f0 - f1))
+    share = mode.mass / model["m3"]
+    where = ("at the centre of mass" if abs(mode.x) < 0.05 * (model["a"] + model["b"]) else
+             f"{abs(mode.x):.3g} m {'ahead of' if mode.x > 0 else 'behind'} the centre of mass")
+    h0, h1 = drop["heave"]
+    ev = (f"A resonance at {mode.freq_hz:.4g} Hz (damping ratio {mode.zeta:.2g}) in the "
+          + " and the ".join({"heave": "vertical enforced force", "moment": "enforced moment"}[nm] for nm in shows)
+          + f" that no parameter or sensor effect of the model makes: a mass of {mode.mass:.4g} kg "
+          f"({100 * share:.3g} % of the body) on a spring-damper {where} explains it, the vertical enforced "
+          f"force's residual falls from {h0:.4g} to {h1:.4g} N RMS (z = {out['z']:.3g}); fitted on alternate "
+          f"stretches of the record alone it lowers the others' residual (t = {out['halves']['t']:.3g}), at "
+          f"{f0:.4g} and {f1:.4g} Hz.")
+    return {"cause": MODE.name, "estimate": float(mode.freq_hz), "unit": MODE.unit,
+            "interval": [float(mode.freq_hz - half), float(mode.freq_hz + half)], "damping": float(mode.zeta),
+            "channels": shows, "placement": {"x_m": float(mode.x), "mass_kg": float(mode.mass),
+                                             "share_of_body": float(share),
+                                             "stiffness_n_per_m": float(mode.stiffness),
+                                             "damping_n_s_per_m": float(mode.damping)},
+            "z": float(out["z"]), "residual": {"channel": "heave", "before": float(h0), "after": float(h1)},
+            "confirmed": True, "evidence": ev}
