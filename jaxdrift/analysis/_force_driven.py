@@ -13,7 +13,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from ..models._halfcar import enforced_moment, force_driven_rhs, prescribed_pitch_rhs, static_equilibrium
+from ..models._halfcar import (enforced_moment, force_driven_mount_rhs, force_driven_rhs, prescribed_pitch_rhs,
+                               static_equilibrium)
 from ..solvers._inputs import SampledSignal
 from ..solvers._solve import solve_ode
 
@@ -67,6 +68,18 @@ def _force_vf_linear(t, x, args):
     return force_driven_rhs(t, x, p, f[0], f[1], linear=True, pitch_spring=spring, nonlinear=nl)
 
 
+def _mount_vf(t, x, args):
+    p, sig, mount, nl = args
+    f = sig(t)
+    return force_driven_mount_rhs(t, x, p, f[0], f[1], mount, nonlinear=nl)
+
+
+def _mount_vf_linear(t, x, args):
+    p, sig, mount, nl = args
+    f = sig(t)
+    return force_driven_mount_rhs(t, x, p, f[0], f[1], mount, linear=True, nonlinear=nl)
+
+
 def _check_signal(name, sig, channels):
     shape = getattr(getattr(sig, "values", None), "shape", None)
     if shape is None or len(shape) != 2 or shape[1] != channels:
@@ -81,7 +94,7 @@ def _span(save_ts, t_span):
 
 
 def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec = SOLVER_LOOSE, pitch_spring=None,
-                    x0=None, t_span=None, linear: bool = False, nonlinear=None):
+                    x0=None, t_span=None, linear: bool = False, nonlinear=None, mount=None):
     """Force-driven model (A.3) excited by ``forces`` (``(2,)`` channels) from its equilibrium.
 
     Returns the engine's ``Solution`` (``ys`` of shape ``(len(save_ts), 10)``). Pure JAX: may be
@@ -89,10 +102,21 @@ def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec =
     the concrete ``t_span=(t0, t1)``. ``pitch_spring=(k, d)`` adds the section-3 rotational
     spring-damper; ``linear=True`` integrates the small-angle form of (A.3); ``nonlinear`` (a
     :class:`~jaxdrift.models.NonlinearSuspension`) the chassis springs' and dampers' nonlinear
-    terms (its defaults: the linear law).
+    terms (its defaults: the linear law). ``mount`` (a :class:`~jaxdrift.models.MountedMass`, not
+    with ``pitch_spring``): the model carries a mass on its own spring-damper; ``ys`` then has 12
+    states, the last two its travel and rate (:func:`~jaxdrift.models.force_driven_mount_rhs`).
     """
     _check_signal("forces", forces, 2)
     t0, t1 = _span(save_ts, t_span)
+    if mount is not None:
+        if pitch_spring is not None:
+            raise ValueError("simulate_forces: a mounted mass and a pitch spring together are not supported")
+        if x0 is None:
+            x0 = static_equilibrium(params, "force")
+            x0 = jnp.concatenate([x0, jnp.zeros(x0.shape[:-1] + (2,), dtype=x0.dtype)], axis=-1)
+        return solve_ode(_mount_vf_linear if linear else _mount_vf, x0, t0, t1,
+                         saveat=save_ts if isinstance(save_ts, np.ndarray) else jnp.asarray(save_ts),
+                         args=(params, forces, mount, nonlinear), **solver.kwargs())
     if x0 is None:
         x0 = static_equilibrium(params, "force")
     spring = None if pitch_spring is None else tuple(pitch_spring)

@@ -27,6 +27,8 @@ from ._halfcar import (
     static_equilibrium as static_equilibrium,
     pitch_states_from_force_states as pitch_states_from_force_states,
     NonlinearSuspension as NonlinearSuspension,
+    MountedMass as MountedMass,
+    force_driven_mount_rhs as force_driven_mount_rhs,
 )
 from ._ins import (
     SmoothMotion as SmoothMotion,
@@ -71,4 +73,4 @@ from ._road import (
     iso8608_variance as iso8608_variance,
 )
 
-__all__ = ['B_MATRICES', 'FORCE_STATE_NAMES', 'HalfCarParams', 'NonlinearSuspension', 'ISO8608_GD0', 'ISO8608_N0', 'PAPER_PERTURBATION', 'PERTURBABLE_KEYS', 'PITCH_STATE_NAMES', 'PointMassParams', 'ROAD_STATE_NAMES', 'RoadProfile', 'SmoothMotion', 'WheelInputs', 'angle_error_std', 'angle_error_std_closed_form', 'check_positions', 'consistency_residual', 'contact_forces', 'enforced_moment', 'euler_norm_growth', 'euler_step', 'euler_to_quat', 'expmap_step', 'force_driven_rhs', 'gyro_errors', 'iso8608_psd', 'iso8608_road', 'iso8608_variance', 'ito_norm_growth', 'omega_dot_noise_matrix', 'omega_matrix', 'pitch_spring_torque', 'pitch_states_from_force_states', 'pointmass_rhs', 'prescribed_pitch_rhs', 'quat_conjugate', 'quat_exp', 'quat_multiply', 'quat_to_euler', 'random_perturbed_models', 'reconstruct', 'road_driven_rhs', 'rotation_angle_between', 'rotation_matrix', 'simulate_array', 'skew', 'spring_forces', 'stack_models', 'static_equilibrium', 'vehicle_motion']
+__all__ = ['B_MATRICES', 'FORCE_STATE_NAMES', 'HalfCarParams', 'MountedMass', 'NonlinearSuspension', 'ISO8608_GD0', 'ISO8608_N0', 'PAPER_PERTURBATION', 'PERTURBABLE_KEYS', 'PITCH_STATE_NAMES', 'PointMassParams', 'ROAD_STATE_NAMES', 'RoadProfile', 'SmoothMotion', 'WheelInputs', 'angle_error_std', 'angle_error_std_closed_form', 'check_positions', 'consistency_residual', 'contact_forces', 'enforced_moment', 'euler_norm_growth', 'euler_step', 'euler_to_quat', 'expmap_step', 'force_driven_mount_rhs', 'force_driven_rhs', 'gyro_errors', 'iso8608_psd', 'iso8608_road', 'iso8608_variance', 'ito_norm_growth', 'omega_dot_noise_matrix', 'omega_matrix', 'pitch_spring_torque', 'pitch_states_from_force_states', 'pointmass_rhs', 'prescribed_pitch_rhs', 'quat_conjugate', 'quat_exp', 'quat_multiply', 'quat_to_euler', 'random_perturbed_models', 'reconstruct', 'road_driven_rhs', 'rotation_angle_between', 'rotation_matrix', 'simulate_array', 'skew', 'spring_forces', 'stack_models', 'static_equilibrium', 'vehicle_motion']

@@ -60,6 +60,8 @@ __all__ = [
     "spring_forces",
     "contact_forces",
     "force_driven_rhs",
+    "force_driven_mount_rhs",
+    "MountedMass",
     "road_driven_rhs",
     "prescribed_pitch_rhs",
     "enforced_moment",
@@ -200,6 +202,49 @@ def force_driven_rhs(t, x, params: HalfCarParams, f1, f2, linear: bool = False, 
     dzeta1 = (p.k1 * (x[0] - x[8]) + p.d1 * x[4] - f1) / p.d1
     dzeta2 = (p.k2 * (x[1] - x[9]) + p.d2 * x[5] - f2) / p.d2
     return jnp.stack([x[4], x[5], x[6], x[7], ddz1, ddz2, ddz3, ddbeta, dzeta1, dzeta2])
+
+
+class MountedMass(NamedTuple):
+    """A mass on a vertical spring-damper inside the chassis (an engine on its mounts, a seat):
+    ``mass`` [kg] at ``x`` [m ahead of the centre of mass], stiffness ``k`` [N/m], damping ``d``
+    [N s/m]. The model's ``m3`` and ``I`` stay those of the rigid whole (the mass included, fixed
+    at ``x``), as a diagnosis's ``extended_model.unmodelled_mode`` gives it. A pytree."""
+
+    mass: float
+    x: float
+    k: float
+    d: float
+
+    @classmethod
+    def from_json(cls, d: dict | None) -> "MountedMass | None":
+        """From a report's ``extended_model.unmodelled_mode`` (None where there is none)."""
+        if not d:
+            return None
+        return cls(float(d["mass_kg"]), float(d["x_m"]), float(d["stiffness_n_per_m"]), float(d["damping_n_s_per_m"]))
+
+
+def force_driven_mount_rhs(t, x, params: HalfCarParams, f1, f2, mount: MountedMass, linear: bool = False,
+                           nonlinear=None):
+    """Right-hand side of the force-driven half-car (A.3) carrying ``mount``: 12 states, the 10 of
+    :func:`force_driven_rhs` (``z3``, ``beta`` those of the rigid whole's centre of mass) and the
+    mass's travel ``y`` below its static place under the chassis point ``x`` and its rate.
+
+    The whole system's momentum and angular momentum give ``m3 z3'' + m y'' = m3 g - f3 - f4`` and
+    ``I beta'' - x cos(beta) m y'' = cos(beta) (b f3 - a f4)``; the mass's own law
+    ``m (y'' + z_p'') = -(k y + d y')`` with ``z_p = z3 - x sin(beta)``. Solved for the three
+    accelerations in closed form; with ``mount.mass = 0`` the first 10 states are (A.3)'s."""
+    p, mt = params, mount
+    q, dq = x[0:4], x[4:8]
+    y, dy = x[10], x[11]
+    r1, r2, r3, rb = _accelerations(q, dq, p, f1, f2, linear, 0.0, nonlinear)  # the rigid whole's
+    s, c = _sin_cos(q[3], linear)
+    rel = -(mt.k * y + mt.d * dy) / jnp.maximum(mt.mass, 1e-30) * (mt.mass > 0) - mt.x * s * dq[3] ** 2
+    ddy = (rel - r3 + mt.x * c * rb) / (1.0 - mt.mass / p.m3 - (mt.x * c) ** 2 * mt.mass / p.I)
+    ddz3 = r3 - mt.mass / p.m3 * ddy
+    ddbeta = rb + mt.x * c * mt.mass / p.I * ddy
+    dzeta1 = (p.k1 * (x[0] - x[8]) + p.d1 * x[4] - f1) / p.d1
+    dzeta2 = (p.k2 * (x[1] - x[9]) + p.d2 * x[5] - f2) / p.d2
+    return jnp.stack([x[4], x[5], x[6], x[7], r1, r2, ddz3, ddbeta, dzeta1, dzeta2, dy, ddy])
 
 
 def road_driven_rhs(t, xbar, params: HalfCarParams, zeta, dzeta, linear: bool = False, nonlinear=None):

@@ -47,7 +47,8 @@ def _bucket(n: int) -> int:
     return max(n, int(math.ceil(256 * 2 ** (j / 4))))
 
 
-def _force_driven_pitch(run: VehicleRun, models: list, forces: list, nonlinear: list | None = None) -> list:
+def _force_driven_pitch(run: VehicleRun, models: list, forces: list, nonlinear: list | None = None,
+                        mounts: list | None = None) -> list:
     """States of the force-driven model (A.3) driven by ``forces``, from each model's static
     equilibrium, for several (model, forces) pairs at once (vmapped).
 
@@ -63,7 +64,8 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list, nonlinear: 
     end, which the states at the run's samples do not see) and called in batches of ``BATCH``.
     ``nonlinear``: per pair, the chassis suspension's nonlinear terms
     (:class:`~jaxdrift.models.NonlinearSuspension`; None for all: the linear law, compiled without
-    them).
+    them). ``mounts``: per pair, a :class:`~jaxdrift.models.MountedMass` (one of zero mass for a
+    model without; None for all: compiled without), the states then 12.
     """
     import jax
     import jax.numpy as jnp
@@ -73,17 +75,27 @@ def _force_driven_pitch(run: VehicleRun, models: list, forces: list, nonlinear: 
     dt, sub = solve_grid(run)
     n, nb = run.n, _bucket(run.n)
     out, codes = [], []
+    if mounts is not None and nonlinear is None:
+        from ...models._halfcar import NonlinearSuspension
+
+        nonlinear = [NonlinearSuspension()] * len(models)
+
+    def stacked(items, i0, pad):
+        chunk = list(items[i0:i0 + BATCH])
+        chunk += [chunk[-1]] * pad
+        return jax.tree_util.tree_map(lambda *x: jnp.asarray(x, dtype=jnp.float64), *chunk)
+
     with jax.enable_x64(True):
-        solve = _compiled_solve(nb, dt, sub, nonlinear is not None)
+        solve = _compiled_solve(nb, dt, sub, nonlinear is not None, mounts is not None)
         for i0, pad, _, params, values, y0 in batches(models, forces, nb - n):
             sig = jax.vmap(lambda v: SampledSignal(0.0, dt, v))(jnp.asarray(values))  # a batch of signals
-            if nonlinear is None:
+            if mounts is not None:
+                y0 = np.concatenate([y0, np.zeros((y0.shape[0], 2))], axis=1)
+                ys, c = solve(params, sig, jnp.asarray(y0), stacked(nonlinear, i0, pad), stacked(mounts, i0, pad))
+            elif nonlinear is None:
                 ys, c = solve(params, sig, jnp.asarray(y0))
             else:
-                chunk = list(nonlinear[i0:i0 + BATCH])
-                chunk += [chunk[-1]] * pad
-                nl = jax.tree_util.tree_map(lambda *x: jnp.asarray(x, dtype=jnp.float64), *chunk)
-                ys, c = solve(params, sig, jnp.asarray(y0), nl)
+                ys, c = solve(params, sig, jnp.asarray(y0), stacked(nonlinear, i0, pad))
             out += list(np.asarray(ys)[:BATCH - pad, :n])
             codes += np.asarray(c)[:BATCH - pad].tolist()
     if np.any(np.asarray(codes) != 0):
@@ -127,24 +139,26 @@ def batches(models: list, forces: list, extra: int):
 _JIT_CACHE: dict = {}
 
 
-def _compiled_solve(n: int, dt: float, sub: int, nonlinear: bool = False):
+def _compiled_solve(n: int, dt: float, sub: int, nonlinear: bool = False, mount: bool = False):
     """The jitted, vmapped force-driven solve of ``n`` samples ``dt`` apart with ``sub`` steps per
     sample, saving at the samples. The save times are concrete (closed over), so the engine takes
     its fixed-step path for saves on the step grid (a scan over save intervals), which also
     compiles in about half the time of the general one. ``nonlinear``: the solve takes a batch of
-    :class:`~jaxdrift.models.NonlinearSuspension` as its fourth argument."""
+    :class:`~jaxdrift.models.NonlinearSuspension` as its fourth argument; ``mount``: a batch of
+    :class:`~jaxdrift.models.MountedMass` as its fifth."""
     import jax
 
     from ...analysis._force_driven import SolverSpec, simulate_forces
 
-    key = (n, dt, sub, nonlinear)
+    key = (n, dt, sub, nonlinear, mount)
     f = _JIT_CACHE.pop(key, None)
     if f is None:
         tau = np.arange(n) * dt
         t1, h = float(tau[-1]), dt / sub
 
-        def one(p, sg, y, nl=None):
-            sol = simulate_forces(p, sg, tau, SolverSpec("fixed", dt=h), x0=y, t_span=(0.0, t1), nonlinear=nl)
+        def one(p, sg, y, nl=None, mt=None):
+            sol = simulate_forces(p, sg, tau, SolverSpec("fixed", dt=h), x0=y, t_span=(0.0, t1), nonlinear=nl,
+                                  mount=mt)
             return sol.ys, sol.result
 
         f = jax.jit(jax.vmap(one))
@@ -221,21 +235,24 @@ def noise_pitch_dynamic_rms(p: dict, h: float) -> float:
 
 
 def resimulate(pipe, model: dict, p_ext: dict, corr_ext: dict, sigma: float, sim_err: dict,
-               gain: dict, nonlinear: dict | None = None) -> tuple[dict, dict, dict]:
+               gain: dict, nonlinear: dict | None = None, mount: dict | None = None) -> tuple[dict, dict, dict]:
     """Run the force-driven model (A.3) before (model, measured forces) and after (extended model,
     corrected forces, and the confirmed nonlinear causes' terms ``nonlinear``, the report's
     ``extended_model.nonlinear``). Returns ``(sims, sim_err, gain)``: the simulations and the unit
     noise-only pitch envelope, and copies of ``sim_err`` and ``gain`` with the measured pitch/heave errors
-    added (before; before/after)."""
-    from ...models._halfcar import NonlinearSuspension
+    added (before; before/after). ``mount``: the report's ``extended_model.unmodelled_mode`` (the
+    extended model then carries that mass on its spring)."""
+    from ...models._halfcar import MountedMass, NonlinearSuspension
 
     run = pipe.run
     sim_err, gain = dict(sim_err), dict(gain)
     forces0 = {ch: run[ch] for ch in FORCE_CHANNELS}
     forces1 = {ch: v[::pipe.U] for ch, v in pipe.corrected_forces(corr_ext).items()}
     nl = NonlinearSuspension.from_json(nonlinear)
+    mt = MountedMass.from_json(mount)
     y0, y1 = _force_driven_pitch(run, [model, p_ext], [forces0, forces1],
-                                 None if nl is None else [NonlinearSuspension(), nl])
+                                 None if nl is None else [NonlinearSuspension(), nl],
+                                 None if mt is None else [MountedMass(0.0, 0.0, 0.0, 0.0), mt])
     sims = {"before": y0, "after": y1}
     env_unit = noise_pitch_std(model, run.dt, run.n)
     sims["pitch_std_unit"] = env_unit

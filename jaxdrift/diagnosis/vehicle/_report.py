@@ -529,7 +529,8 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
     nonlinear = {k: v for d, det in detected for k, v in d.model_terms(det).items()} | form["correction"]
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
-        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, nonlinear)
+        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, nonlinear,
+                                         None if mode is None else mode[0].extended(p_ext))
 
     report = {
         "schema": SCHEMA,
