@@ -51,6 +51,13 @@ N_PLACES = 8
 ALPHA = 1e-3
 #: smallest mass worth naming, as a share of the model's body mass
 MASS_MIN = 0.005
+#: largest: a mass on its own spring is a part of the body (an engine is 8-15 %); a fit that wants
+#: a third of the body or more is something else the model lacks (a 10 ms delay the nuisance's
+#: linear term cannot take, a progressive spring: both read as 28-70 % of the body, measured)
+MASS_MAX = 0.3
+#: largest damping ratio of a resonance (mounts 0.05-0.2, seats up to 0.4); a fit near critical
+#: damping is no resonance (the same two fits went to 0.8 and 1)
+ZETA_MAX = 0.5
 #: the frequencies fitted on the two halves of alternate stretches agree within this share
 FREQ_AGREE = 0.15
 #: stretches of the out-of-sample check
@@ -218,11 +225,16 @@ class _Search:
         return float(e @ e), mass
 
 
+#: the search reaches this multiple of the band the heave and moment residuals are compared in
+#: (a mode above the band still shows below it, its high-pass rising as the frequency to the 4th)
+ABOVE_BAND = 2.0
+
+
 def _band_hi(pipe) -> float:
     hi = min(F_HI_HZ, 0.2 / pipe.h)
     for nm in MODE_CHANNELS:
         if nm in pipe.band:
-            hi = min(hi, 0.8 * pipe.band[nm][0])
+            hi = min(hi, ABOVE_BAND * pipe.band[nm][0])
     return hi
 
 
@@ -337,6 +349,13 @@ def _halves(prob, r, nuisance, p, mode: Mode, search: _Search) -> dict:
     return {"t": t, "freqs": freqs}
 
 
+def plausible(mode: Mode, p: dict, hi: float) -> bool:
+    """A mass on its own spring an engineer would believe: ``MASS_MIN``-``MASS_MAX`` of the body,
+    damping ratio at most ``ZETA_MAX``, frequency inside the searched band (not at its edges)."""
+    return (MASS_MIN * p["m3"] <= mode.mass <= MASS_MAX * p["m3"] and mode.zeta <= ZETA_MAX
+            and F_LO_HZ * 1.05 < mode.freq_hz < hi / 1.05)
+
+
 def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | None = None) -> dict:
     """Search, size and test a mode in the weighted residual ``r`` of the model ``p`` (nuisance:
     the linear causes' columns). Returns ``{"mode": Mode | None, "z", "se_f", "halves", "note",
@@ -370,10 +389,8 @@ def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | No
     why = None
     if not (z > crit):
         why = "z"
-    elif mode.mass < MASS_MIN * p["m3"]:
-        why = "mass"
-    elif not (F_LO_HZ * 1.05 < mode.freq_hz < hi / 1.05):
-        why = "edge"
+    elif not plausible(mode, p, hi):
+        why = "implausible"
     elif math.sqrt(max(rss0 - rss1, 0.0)) < SHARE_MIN * math.sqrt(max(rss1, 1e-300)):
         why = "share"
     else:
@@ -395,24 +412,30 @@ def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | No
     return out
 
 
-def look_for_mode(prob, model: dict, log: list | None = None) -> dict:
-    """:func:`find_mode` on the model as given, every linear cause's sensitivity a nuisance column
-    (a mode is named only for what none of them can make)."""
+def look_for_mode(prob, model: dict, fit, log: list | None = None) -> dict:
+    """:func:`find_mode` on the residual of ``fit`` (the linear causes chosen on the rigid model),
+    every linear cause's sensitivity at that fit a nuisance column: a mode is named only for what
+    none of them can make, and a large cause (a delay of 10 ms) is taken at its fitted size, not by
+    its slope at zero."""
     from ._causes import _candidates
-    from ._select import _identifiable
 
     if not can_show(prob.pipe) or not all(nm in prob.names for nm in MODE_CHANNELS):
         return find_mode(prob, model, np.zeros(0), np.zeros((0, 0)), log)
-    r0, _ = prob.eval([], [])
-    active, _, Jc = _identifiable(prob, _candidates(prob.pipe))
-    J = np.column_stack([Jc[c] for c in active]) if active else np.zeros((len(r0), 0))
-    return find_mode(prob, model, r0, J, log)
+    causes = list(fit.causes) + [c for c in _candidates(prob.pipe) if c not in fit.causes]
+    theta = np.concatenate([np.asarray(fit.theta, dtype=float), np.zeros(len(causes) - len(fit.causes))])
+    r, _ = prob.eval(causes, theta)
+    J = prob.jacobian(causes, theta)
+    norms = np.sqrt(np.sum(J * J, axis=0))
+    J = J[:, norms > 1e-12 * max(float(norms.max()) if norms.size else 1.0, 1e-300)]
+    return find_mode(prob, model, r, J, log)
 
 
-def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode:
+def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode | None:
     """The mode refitted beside the chosen linear causes (their columns the nuisance, the residual
     the fitted model's without the mode): the search's nuisance held every linear cause, which takes
-    part of a mode's mass (a body mass error is a mode's far-above-resonance limit)."""
+    part of a mode's mass (a body mass error is a mode's far-above-resonance limit). None where the
+    refit is no longer :func:`plausible` or its frequency moved by more than ``FREQ_AGREE``: the
+    mode and the chosen causes then trade one for another, and the mode is not shown."""
     from ._causes import _apply
 
     pipe = carrying(prob.pipe, None)
@@ -420,10 +443,11 @@ def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode:
     r = prob.weighted(pipe.residuals(p, corr))
     X = fit.X if fit.X is not None and fit.causes else np.zeros((len(r), 0))
     new, _ = fit_mode(prob.with_pipe(pipe), r, X, p, start=mode)
+    ok = plausible(new, p, _band_hi(pipe)) and abs(new.freq_hz - mode.freq_hz) <= FREQ_AGREE * mode.freq_hz
     if log is not None:
         log.append(f"unmodelled mode resized beside {[c.label for c in fit.causes]}: {new.freq_hz:.4g} Hz zeta "
-                   f"{new.zeta:.3g} x {new.x:.3g} m mass {new.mass:.4g} kg")
-    return new
+                   f"{new.zeta:.3g} x {new.x:.3g} m mass {new.mass:.4g} kg" + ("" if ok else ": withdrawn"))
+    return new if ok else None
 
 
 #: a channel the mode "shows in": its part there is at least this share of the channel's residual

@@ -14,6 +14,9 @@ from ._report import vehicle_report
 from ._residuals import ResidualPipeline
 from ._select import _select
 
+#: rounds of choosing the linear causes on the model carrying a mode and sizing the mode beside them
+MODE_ROUNDS = 2
+
 
 def select_with_form(prob: _Problem, log: list | None = None) -> tuple[_Problem, object, dict | None]:
     """The linear causes, chosen once the model's form is right.
@@ -77,20 +80,36 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     pipe = ResidualPipeline(run)
     prob = _Problem(pipe, model)
     pipe = prob.pipe  # with the channels it compares band-limited
-    # a degree of freedom the model lacks is named first (_mode): the linear causes are chosen on
-    # the model that carries it, so that none of them stands in for it
-    mode_out = look_for_mode(prob, model, log)
-    mode = mode_out["mode"]
-    if mode is not None:
-        prob = prob.with_pipe(carrying(pipe, mode))
+    rigid = prob
     # prob carries a nonlinear cause's force where one is found; form0: the adequacy test of sel0's fit
-    prob, sel0, form0 = select_with_form(prob, log)
+    first = prob, sel0, form0 = select_with_form(rigid, log)
+    # a degree of freedom the model lacks (_mode), looked for beside the causes chosen, is named
+    # first: the linear causes are then chosen again on the model that carries it, so that none of
+    # them stands in for it
+    mode_out = look_for_mode(prob, model, sel0.fit, log)
+    mode = mode_out["mode"]
+    for _ in range(MODE_ROUNDS if mode is not None else 0):
+        # sized again beside the causes chosen on the model carrying it (the search's nuisance held
+        # every linear cause and took part of its mass), and the causes chosen again while it moves
+        prob, sel0, form0 = select_with_form(rigid.with_pipe(carrying(pipe, mode)), log)
+        new = resize_mode(prob, sel0.fit, mode, log)
+        if new is None or (abs(new.mass - mode.mass) <= 0.05 * mode.mass
+                           and abs(new.freq_hz - mode.freq_hz) <= 0.01 * mode.freq_hz):
+            mode = new
+            break
+        mode = new
+    if mode_out["mode"] is not None and mode is None:  # withdrawn: the first choice stands
+        c = mode_out["mode"]
+        mode_out = {**mode_out, "mode": None, "note": (
+            f"Could not show: a resonance near {c.freq_hz:.3g} Hz fits what no linear cause makes, but beside "
+            f"the causes chosen it moves or stops being a mass on a spring (unmodelled_mode not named); the "
+            f"model may lack something else.")}
+        prob, sel0, form0 = first
+    elif mode is not None:
+        prob = prob.with_pipe(carrying(prob.pipe, mode))
     sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log)
     fit = sel.fit
     dynamic = len(fit.r) > 2
-    if mode is not None:  # sized again beside the causes chosen
-        mode = resize_mode(prob, fit, mode, log)
-        prob = prob.with_pipe(carrying(prob.pipe, mode))
 
     # the adequacy test of the fitted linear model (_adequacy): the nonlinear causes and model-form
     # findings lead, as the linear findings hold only if the model's form does; their intervals
