@@ -62,13 +62,14 @@ def _case(tmp_path, engine: dict | None, what: list, seed: int = 7, name: str = 
     return ge.make_run(case, str(tmp_path), name=name)
 
 
-def _diagnose(paths, with_simulation=False):
+def _diagnose(paths, with_simulation=False, plots_dir=None):
     from jaxdrift.diagnosis.vehicle import diagnose_vehicle_run
     from jaxdrift.io._csvio import read_vehicle_run
 
     with open(paths["model"]) as fh:
         model = json.load(fh)
-    return diagnose_vehicle_run(read_vehicle_run(paths["csv"]), model, with_simulation=with_simulation)
+    return diagnose_vehicle_run(read_vehicle_run(paths["csv"]), model, with_simulation=with_simulation,
+                                plots_dir=plots_dir)
 
 
 SYSTEMATIC = {"force_offset", "force_scale", "force_delay", "force_gain_drift", "force_crosstalk", "parameter_error",
@@ -84,7 +85,8 @@ def test_an_engine_on_mounts_is_named_first_with_a_sensor_effect_beside_it(tmp_p
     falls (it carries the mass on its spring)."""
     paths = _case(tmp_path, {"share": 0.10, "x": 0.8, "freq": 11.0, "zeta": 0.1},
                   [{"cause": "force_offset", "channel": "f1", "value": 60.0}])
-    rep = _diagnose(paths, with_simulation=True)
+    rep = _diagnose(paths, with_simulation=True, plots_dir=tmp_path / "plots")
+    assert (tmp_path / "plots" / "unmodelled_mode.png").stat().st_size > 10_000
     first = rep["findings"][0]
     assert first["cause"] == "unmodelled_mode" and first["confirmed"], rep["findings"][:3]
     assert abs(first["estimate"] - 11.0) < 0.11 and first["interval"][0] <= 11.0 <= first["interval"][1], first

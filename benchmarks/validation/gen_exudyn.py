@@ -12,6 +12,12 @@ runs both spring travels) measured, 0.5-3 N of force noise, and on half the runs
 (an offset, scale or delay on f1 or f2, ``gen_vehicle.draw_effect``). The files follow
 docs/measured-data.md as ``gen_vehicle`` writes them; the truth lists the sensor effects and the
 force noise (the scorecard's truth) and the engine under ``model_form``.
+
+``design_modes``: the model-form world (scorecard ``vehicle-modes/indep``): an engine (8-15 Hz), a
+seat or payload (4-8 % of the body on 3-6 Hz, damping ratio 0.15-0.35, from half the rear lever
+behind the centre of mass to 0.3 of the front one ahead) or the rigid car, each alone, with a sensor
+effect, or (engine and seat) with an error of a chassis spring or damper (the car simulated with
+the true one, the model given the drawn one).
 """
 
 from __future__ import annotations

@@ -16,7 +16,9 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
     * ``residual_envelope.png``: the residual after the fit against the 95 % noise-only band, and
       the force-driven pitch error against the noise-only drift envelope;
     * ``tyre_forces.png`` (runs with the road height): the tyre-law residual of each wheel before
-      and after, against the noise-only band.
+      and after, against the noise-only band;
+    * ``unmodelled_mode.png`` (a mode named): the spectrum of the vertical enforced force before and
+      after, with the mode's frequency and interval marked.
     """
     import os
 
@@ -100,6 +102,10 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
         axes[-1, 0].set_xlabel("t [s]")
         save(fig, "residual_envelope.png")
 
+    mode = next((f for f in report.get("findings", []) if f.get("cause") == "unmodelled_mode"), None)
+    if mode is not None and "heave" in prob.names:
+        save(_mode_figure(plt, pipe, prob, res0, res1, mode), "unmodelled_mode.png")
+
     tyres = [nm for nm in prob.names if nm.startswith("tyre")]
     if tyres:
         fig, axes = plt.subplots(len(tyres), 1, figsize=(9, 3.2 * len(tyres)), squeeze=False, sharex=True)
@@ -116,3 +122,28 @@ def write_vehicle_plots(plots_dir, run, model, p_ext, pipe, prob, res0, res1, si
         axes[-1, 0].set_xlabel("t [s]")
         save(fig, "tyre_forces.png")
     return paths
+
+
+def _mode_figure(plt, pipe, prob, res0, res1, mode: dict):
+    """Amplitude spectra (Welch) of the vertical enforced force of the model and of the extended
+    model, the mode's frequency and its interval marked."""
+    import scipy.signal
+
+    fs = 1.0 / pipe.h
+    fig, ax = plt.subplots(figsize=(9, 4))
+    rows = slice(prob.skip["heave"], prob.skip["heave"] + prob.rows["heave"])
+    for res, col, lab in ((res0, "C3", "model"), (res1, "C0", "extended model")):
+        x = np.asarray(res.channels["heave"])[rows]
+        f, pxx = scipy.signal.welch(x - x.mean(), fs=fs, nperseg=min(len(x), int(8 * fs)))
+        ax.loglog(f[1:], np.sqrt(pxx[1:]), col, lw=0.9, label=lab)
+    lo, hi = mode["interval"]
+    ax.axvspan(lo, hi, color="C1", alpha=0.25)
+    ax.axvline(mode["estimate"], color="C1", lw=1.0,
+               label=f"unmodelled mode {mode['estimate']:.3g} Hz, {mode['placement']['mass_kg']:.3g} kg")
+    if "heave" in pipe.band:
+        ax.axvline(pipe.band["heave"][0], color="0.5", ls="--", lw=0.8, label="compared below")
+    ax.set_xlabel("frequency [Hz]")
+    ax.set_ylabel("vertical enforced force [N/sqrt(Hz)]")
+    ax.set_title("A resonance the rigid model cannot make")
+    ax.legend(loc="lower left", fontsize=8)
+    return fig
