@@ -456,8 +456,10 @@ SHOWS_SHARE = 0.1
 
 def mode_finding(prob, out: dict, mode: Mode, res0, model: dict) -> dict:
     """The report's ``unmodelled_mode`` finding (confirmed: every test of :func:`find_mode` passed):
-    the frequency with its interval (the wider of 1.96 standard errors and the two halves'
-    disagreement), damping ratio, the channels it shows in, the placement and the evidence."""
+    the frequency with its interval (the widest of 1.96 standard errors, the two halves'
+    disagreement and the move from the search to the final size), damping ratio, the channels it
+    shows in, the placement and the evidence. ``res0``: the extended model's residuals without the
+    mode (its other causes applied), so that the drop the evidence states is the mode's own."""
     def rms(x):
         return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
 
@@ -471,7 +473,7 @@ def mode_finding(prob, out: dict, mode: Mode, res0, model: dict) -> dict:
         if rms(part) >= SHOWS_SHARE * rms(before):
             shows.append(nm)
     f0, f1 = out["halves"]["freqs"]
-    half = max(1.96 * out["se_f"], abs(f0 - f1))
+    half = max(1.96 * out["se_f"], abs(f0 - f1), abs(mode.freq_hz - out["candidate"].freq_hz))
     share = mode.mass / model["m3"]
     where = ("at the centre of mass" if abs(mode.x) < 0.05 * (model["a"] + model["b"]) else
              f"{abs(mode.x):.3g} m {'ahead of' if mode.x > 0 else 'behind'} the centre of mass")
