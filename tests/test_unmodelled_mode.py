@@ -34,6 +34,22 @@ def test_the_mode_filter_is_the_closed_form():
         assert np.max(np.abs(y[tail] - ref[tail])) < 2e-3 * max(np.abs(H), 0.05), f
 
 
+def test_the_mode_filter_is_scipys_first_order_hold():
+    """The recursion is what ``scipy.signal.cont2discrete(..., method="foh")`` and ``ss2tf`` give
+    for the same state-space form (computed here in five times less time)."""
+    import scipy.signal
+
+    from jaxdrift.diagnosis.vehicle._mode import _highpass_coeffs
+
+    for f, zeta, dt in ((3.0, 0.1, 1e-3), (12.0, 0.05, 2e-3), (40.0, 0.3, 1 / 200)):
+        w = 2 * math.pi * f
+        sysc = (np.array([[0.0, 1.0], [-w * w, -2 * zeta * w]]), np.array([[0.0], [-1.0]]),
+                np.array([[w * w, 2 * zeta * w]]), np.array([[1.0]]))
+        num, den = scipy.signal.ss2tf(*scipy.signal.cont2discrete(sysc, dt, method="foh")[:4])
+        got = _highpass_coeffs(f, zeta, dt)
+        assert np.allclose(got[0], num[0], rtol=1e-9, atol=1e-12) and np.allclose(got[1], den, rtol=1e-9), f
+
+
 pytest.importorskip("exudyn")
 
 
