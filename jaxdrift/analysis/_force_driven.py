@@ -108,23 +108,21 @@ def simulate_forces(params, forces: SampledSignal, save_ts, solver: SolverSpec =
     """
     _check_signal("forces", forces, 2)
     t0, t1 = _span(save_ts, t_span)
-    if mount is not None:
-        if pitch_spring is not None:
-            raise ValueError("simulate_forces: a mounted mass and a pitch spring together are not supported")
-        if x0 is None:
-            x0 = static_equilibrium(params, "force")
-            x0 = jnp.concatenate([x0, jnp.zeros(x0.shape[:-1] + (2,), dtype=x0.dtype)], axis=-1)
-        return solve_ode(_mount_vf_linear if linear else _mount_vf, x0, t0, t1,
-                         saveat=save_ts if isinstance(save_ts, np.ndarray) else jnp.asarray(save_ts),
-                         args=(params, forces, mount, nonlinear), **solver.kwargs())
+    if mount is not None and pitch_spring is not None:
+        raise ValueError("simulate_forces: a mounted mass and a pitch spring together are not supported")
     if x0 is None:
         x0 = static_equilibrium(params, "force")
-    spring = None if pitch_spring is None else tuple(pitch_spring)
+        if mount is not None:  # the mass at rest in its static place
+            x0 = jnp.concatenate([x0, jnp.zeros(x0.shape[:-1] + (2,), dtype=x0.dtype)], axis=-1)
+    if mount is not None:
+        vf, extra = (_mount_vf_linear if linear else _mount_vf), mount
+    else:
+        vf, extra = (_force_vf_linear if linear else _force_vf), None if pitch_spring is None else tuple(pitch_spring)
     return solve_ode(
-        _force_vf_linear if linear else _force_vf, x0, t0, t1,
+        vf, x0, t0, t1,
         # numpy save times stay numpy: the engine then knows them exactly at trace time
         saveat=save_ts if isinstance(save_ts, np.ndarray) else jnp.asarray(save_ts),
-        args=(params, forces, spring, nonlinear), **solver.kwargs()
+        args=(params, forces, extra, nonlinear), **solver.kwargs()
     )
 
 

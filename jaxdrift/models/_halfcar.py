@@ -199,9 +199,14 @@ def force_driven_rhs(t, x, params: HalfCarParams, f1, f2, linear: bool = False, 
         k_rot, d_rot = pitch_spring
         torque = -(k_rot * x[3] + d_rot * x[7])
     ddz1, ddz2, ddz3, ddbeta = _accelerations(q, dq, p, f1, f2, linear, torque, nonlinear)
-    dzeta1 = (p.k1 * (x[0] - x[8]) + p.d1 * x[4] - f1) / p.d1
-    dzeta2 = (p.k2 * (x[1] - x[9]) + p.d2 * x[5] - f2) / p.d2
+    dzeta1, dzeta2 = _contact_rates(x, p, f1, f2)
     return jnp.stack([x[4], x[5], x[6], x[7], ddz1, ddz2, ddz3, ddbeta, dzeta1, dzeta2])
+
+
+def _contact_rates(x, p: HalfCarParams, f1, f2):
+    """The contact points' rates of (A.3), rows 9-10: ``d_i zeta_i' = k_i (z_i - zeta_i) + d_i z_i' - f_i``."""
+    return ((p.k1 * (x[0] - x[8]) + p.d1 * x[4] - f1) / p.d1,
+            (p.k2 * (x[1] - x[9]) + p.d2 * x[5] - f2) / p.d2)
 
 
 class MountedMass(NamedTuple):
@@ -242,8 +247,7 @@ def force_driven_mount_rhs(t, x, params: HalfCarParams, f1, f2, mount: MountedMa
     ddy = (rel - r3 + mt.x * c * rb) / (1.0 - mt.mass / p.m3 - (mt.x * c) ** 2 * mt.mass / p.I)
     ddz3 = r3 - mt.mass / p.m3 * ddy
     ddbeta = rb + mt.x * c * mt.mass / p.I * ddy
-    dzeta1 = (p.k1 * (x[0] - x[8]) + p.d1 * x[4] - f1) / p.d1
-    dzeta2 = (p.k2 * (x[1] - x[9]) + p.d2 * x[5] - f2) / p.d2
+    dzeta1, dzeta2 = _contact_rates(x, p, f1, f2)
     return jnp.stack([x[4], x[5], x[6], x[7], r1, r2, ddz3, ddbeta, dzeta1, dzeta2, dy, ddy])
 
 

@@ -452,7 +452,7 @@ def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | No
     z, se_f = _z(search, mode, max(sigma, 1e-9))
     n_tests = N_FREQ * len(ZETAS) * N_PLACES
     crit = math.sqrt(scipy.stats.chi2.ppf(1 - ALPHA / n_tests, 1))
-    rss0 = float(search.rp @ search.rp)
+    rss0 = search.rss0
     rss1 = search.profile(mode.freq_hz, mode.zeta, mode.x)[0]
     out.update(mode=None, candidate=mode, z=z, se_f=se_f, crit=crit, rss=(rss0, rss1))
     why = None
@@ -523,22 +523,24 @@ def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode | None:
 SHOWS_SHARE = 0.1
 
 
-def mode_finding(prob, out: dict, mode: Mode, res0, model: dict) -> dict:
+def mode_finding(prob, out: dict, mode: Mode, res1, model: dict) -> dict:
     """The report's ``unmodelled_mode`` finding (confirmed: every test of :func:`find_mode` passed):
     the frequency with its interval (the widest of 1.96 standard errors, the two halves'
     disagreement and the move from the search to the final size), damping ratio, the channels it
-    shows in, the placement and the evidence. ``res0``: the extended model's residuals without the
-    mode (its other causes applied), so that the drop the evidence states is the mode's own."""
+    shows in, the placement and the evidence. ``res1``: the extended model's residuals (``prob``'s
+    pipeline carries ``mode``); without the mode they are ``res1`` plus its part, so the drop the
+    evidence states is the mode's own."""
     def rms(x):
         return float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0
 
-    parts = mode_response(prob.pipe, mode)
+    parts = prob.pipe._mode_parts
     shows, drop = [], {}
     for nm in MODE_CHANNELS:
         rows = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
-        before = np.asarray(res0.channels[nm])[rows]
         part = np.asarray(parts[nm])[rows]
-        drop[nm] = (rms(before), rms(before - part))
+        after = np.asarray(res1.channels[nm])[rows]
+        before = after + part
+        drop[nm] = (rms(before), rms(after))
         if rms(part) >= SHOWS_SHARE * rms(before):
             shows.append(nm)
     f0, f1 = out["halves"]["freqs"]

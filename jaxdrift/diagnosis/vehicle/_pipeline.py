@@ -126,8 +126,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     prob = prob.with_pipe(lin.with_extra(form["extra"]))
     pipe = prob.pipe
     res1 = pipe.residuals(p_ext, corr_ext)
-    form = {**form, "mode": None if mode is None else (mode, mode_finding(
-                prob, mode_out, mode, carrying(pipe, None).residuals(p_ext, corr_ext), model)),
+    form = {**form, "mode": None if mode is None else (mode, mode_finding(prob, mode_out, mode, res1, model)),
             "notes": form["notes"] + ([] if mode_out["note"] is None else [mode_out["note"]])}
     return vehicle_report(run, model, prob, prob_lin, sel, sel0, held_out, resim_out, form, detected,
                           p_ext, corr_ext, res0, res1, dynamic, with_simulation, plots_dir)

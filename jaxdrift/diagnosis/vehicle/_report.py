@@ -527,10 +527,10 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
                          corrections, dynamic)
     sim_err = enforced_terms(prob_lin, model, res0)
     nonlinear = {k: v for d, det in detected for k, v in d.model_terms(det).items()} | form["correction"]
+    mount = None if mode is None else mode[0].extended(p_ext)
     sims = {}
     if with_simulation and (run.has("beta") or run.has("z3")):
-        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, nonlinear,
-                                         None if mode is None else mode[0].extended(p_ext))
+        sims, sim_err, gain = resimulate(lin, model, p_ext, corr_ext, sigma, sim_err, gain, nonlinear, mount)
 
     report = {
         "schema": SCHEMA,
@@ -539,7 +539,7 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
         "findings": findings,
         "extended_model": {"parameters": params_ext, "corrections": with_detections(corrections, detected).to_json(),
                            **({"nonlinear": nonlinear} if nonlinear else {}),
-                           **({} if mode is None else {"unmodelled_mode": mode[0].extended(p_ext)})},
+                           **({} if mount is None else {"unmodelled_mode": mount})},
         "gain": gain,
         "run": {"file": str(run.path), "samples": run.n, "dt_s": run.dt,
                 "duration_s": float(run.t[-1] - run.t[0]),
