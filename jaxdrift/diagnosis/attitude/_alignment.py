@@ -9,9 +9,12 @@ reference and the bias fit as noise.
 :func:`alignment_step` estimates, from the reference's own rates (the rotation between consecutive
 reference samples over their step, at the step's midpoint) and the gyro's:
 
-The reference's rate over a span is its rotation over the span, compared with the gyro's mean rate
-over the same span (the gyro's integral), so that a reference at 1 Hz is compared with what the gyro
-says of the same second, not with its rate at one instant.
+The reference's rate over a span is its rotation over the span, compared with the gyro's rotation
+over the same span (integrated as a quaternion, exact however far the body turns), so that a
+reference at 1 Hz is compared with what the gyro says of the same second, not with its rate at one
+instant. Spans are :data:`SPAN_S` long (or one reference step) and overlap (one starts every
+1/:data:`SPAN_STRIDE` of a span): a tracker's noise of a milliradian per row is 0.07 rad/s over one
+50 Hz step but 0.007 rad/s over 0.2 s, while an offset shows in each span alike.
 
 1. the **clock offset** tau (the reference's stamps late by tau): the lag that best matches the rate
    magnitudes (the reference's rates over spans of :data:`SPAN_S`), which no frame rotation changes (a grid search over +-:data:`MAX_OFFSET_S`, or half a reference step where that is longer, at a quarter
@@ -19,11 +22,13 @@ says of the same second, not with its rate at one instant.
 2. the **frame rotation** R (gyro rate = R x reference body rate + bias): the rotation that fits the
    centred rates best in least squares (Kabsch);
 
-each with a 95 % interval from :data:`N_BLOCKS` time blocks (the spread of the block estimates over
+each with a 95 % interval from :data:`N_BLOCKS` time blocks (or where a block holds fewer than
+:data:`JACKKNIFE_BELOW` spans, the delete-one-block jackknife; the spread of the block estimates over
 sqrt(blocks)). Both are applied (the reference re-stamped and turned into the gyro's frame) where
 they are significant (beyond :data:`Z_APPLY` standard errors), beyond :data:`MIN_OFFSET_STEPS` of the gyro's
-step or :data:`MIN_ANGLE_DEG`, and hold out of sample (in every time block, the value the other
-blocks found fits better than none: a reference consistent as given is never turned); the report's ``run.reference_alignment`` says what was found and
+step or :data:`MIN_ANGLE_DEG`, and hold out of sample (:func:`_predicts`: in 8 of 10 time blocks
+where the body moves, the value the other blocks found fits better than none: a reference consistent
+as given is not turned); the report's ``run.reference_alignment`` says what was found and
 whether it was applied. A reference that hardly turns tells neither: nothing is applied then. Where
 the rotation is not determined (a body turned about one axis) but a signed permutation of the
 axes fits the rates with less than half the identity's misfit (an IMU mounted with its x pointing
@@ -39,19 +44,24 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from ...io._timebase import place_nearest
-from ...models._quaternion import quat_conjugate_np, quat_log_np, quat_multiply_np
+from ...models._quaternion import cumulative_quat_product_np, quat_conjugate_np, quat_exp_np, quat_log_np, quat_multiply_np
 from ._common import fmt
 from ._records import Alignment, Said
 
-__all__ = ["alignment_step", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG", "MIN_MOTION_RAD_S"]
+__all__ = ["alignment_step", "clock_settled", "CLOCK_SETTLED_S", "MAX_OFFSET_S", "N_BLOCKS", "MIN_OFFSET_STEPS", "MIN_ANGLE_DEG", "MIN_MOTION_RAD_S"]
 
 MAX_OFFSET_S = 0.1
 #: the reference's rates are taken over spans of at least this [s]
-SPAN_S = 0.02
+SPAN_S = 0.2
+#: ... overlapping: one starts every SPAN_STRIDE-th of a span (a span's rate noise is the reference's
+#: noise over its length, while an offset shows in each span alike: long spans, many of them)
+SPAN_STRIDE = 8
 #: applied beyond this many standard errors (10 blocks scatter), and only where it holds out of sample
 Z_APPLY = 3.0
 N_BLOCKS = 10
-MIN_OFFSET_STEPS = 0.25
+#: an offset within half a gyro step is the gyro's sampling convention (a rate at its stamp, or held
+#: over the step after it), which the reference fit takes as its own parameter: never applied
+MIN_OFFSET_STEPS = 0.5
 MIN_ANGLE_DEG = 0.1
 #: a fitted frame rotation this close to an axis convention [deg] is reported and applied as it
 CONVENTION_SNAP_DEG = 2.0
@@ -70,13 +80,13 @@ def _wxyz(q):
     return np.column_stack([q[:, 3:], q[:, :3]])
 
 
-def _ref_rates(tq, q, span):
+def _ref_rates(tq, q, span, stride=None):
     """Body rates over consecutive reference samples ``span`` apart (a motion-capture attitude
     differenced sample by sample is mostly its own noise): (start, end, w), spans without a gap. The
     rate is the span's mean (its rotation over its length): at a 1 Hz reference it is compared with
     the gyro's mean over the same span, never with the gyro at one instant."""
     med = np.median(np.diff(tq))
-    a = np.arange(0, len(tq) - span, span)
+    a = np.arange(0, len(tq) - span, stride or span)
     b = a + span
     d = tq[b] - tq[a]
     ok = (d > 0) & (d <= (span + 0.5) * med)
@@ -85,30 +95,44 @@ def _ref_rates(tq, q, span):
 
 
 def _gyro_integral(t_grid, w):
-    """(times, cumulative integral) of the gyro rates, each sample the rate at its stamp (as the
-    clock offset has always been read: a sample held over a step would lag half a step), by the
-    trapezoid rule; linear between the samples, so it interpolates at any instant."""
+    """The gyro's attitude at its samples, integrated from the rates (each step at the mean of its
+    two samples' rates, as the clock offset has always been read: a sample held over a step would
+    lag half a step): (times, quaternions, step rates). The rotation between any two instants is
+    then exact for that model of the rates, however far the body turns between them (a reference at
+    0.5 Hz is compared with the gyro's rotation over the same two seconds, not with its mean rate:
+    the two differ where the axis of the turn moves)."""
     fin = np.isfinite(w).all(1)
     tg, wg = t_grid[fin], w[fin]
-    steps = np.diff(tg)[:, None] * 0.5 * (wg[:-1] + wg[1:])
-    return tg, np.vstack([np.zeros((1, 3)), np.cumsum(steps, 0)])
+    ws = 0.5 * (wg[:-1] + wg[1:])
+    Q = cumulative_quat_product_np(np.concatenate([[[1.0, 0.0, 0.0, 0.0]], quat_exp_np(ws * np.diff(tg)[:, None])], 0))
+    return tg, Q / np.linalg.norm(Q, axis=1, keepdims=True), ws
+
+
+def _gyro_at(integral, t):
+    """The gyro's attitude at instants ``t`` inside its record (the step's rate carried on)."""
+    tg, Q, ws = integral
+    k = np.clip(np.searchsorted(tg, t, side="right") - 1, 0, len(ws) - 1)
+    return quat_multiply_np(Q[k], quat_exp_np(ws[k] * (t - tg[k])[:, None]))
 
 
 def _gyro_mean(integral, ta, tb):
-    """The gyro's mean rate over [ta, tb] (NaN where the span leaves the gyro's record)."""
-    tg, C = integral
+    """The gyro's rotation over [ta, tb] as a rotation vector over the span's length (the "mean
+    rate" whose frame-invariant relation to the reference's is exact), NaN where the span leaves
+    the gyro's record."""
+    tg = integral[0]
     out = np.full((len(ta), 3), np.nan)
     inside = (ta >= tg[0]) & (tb <= tg[-1]) & (tb > ta)
-    for c in range(3):
-        out[inside, c] = (np.interp(tb[inside], tg, C[:, c]) - np.interp(ta[inside], tg, C[:, c])) / (tb - ta)[inside]
+    if inside.any():
+        qa, qb = _gyro_at(integral, ta[inside]), _gyro_at(integral, tb[inside])
+        out[inside] = quat_log_np(quat_multiply_np(quat_conjugate_np(qa), qb)) / (tb - ta)[inside][:, None]
     return out
 
 
-def _offset_cost(integral, ta, tb, nb, tau):
+def _offset_cost(integral, ta, tb, nb, tau, min_spans=10):
     """Mean squared mismatch of the rate magnitudes at a clock offset ``tau``."""
     g = np.linalg.norm(_gyro_mean(integral, ta - tau, tb - tau), axis=1)
     m = np.isfinite(g)
-    return float(np.mean((g[m] - nb[m]) ** 2)) if m.sum() > 10 else np.inf
+    return float(np.mean((g[m] - nb[m]) ** 2)) if m.sum() >= min_spans else np.inf
 
 
 def _offset(integral, ta, tb, wb, dt, reach=MAX_OFFSET_S):
@@ -179,24 +203,44 @@ def _rotation(wg, wb):
     return rot.as_matrix()
 
 
+#: an alignment holds out of sample where, in at least this share of the time blocks that tell
+#: anything (a block of a body standing still fits as well with it as without), the value the other
+#: blocks found fits better than none, and the blocks' misfits summed fall with it
+HOLD_SHARE = 0.8
+#: ... and at least this many blocks tell
+MIN_TELLING_BLOCKS = 5
+
+
+def _predicts(with_it, without) -> bool:
+    """The held-out rule over the blocks' misfits with the alignment and without it: a sign test
+    (8 of 10 blocks better: 5 % for an alignment that tells nothing, on top of its significance)."""
+    a, b = np.asarray(with_it, float), np.asarray(without, float)
+    tell = np.abs(a - b) > 1e-9 * np.maximum(np.abs(b), 1e-300)
+    if tell.sum() < MIN_TELLING_BLOCKS:
+        return False
+    return bool(np.mean(a[tell] < b[tell]) >= HOLD_SHARE and a.sum() < b.sum())
+
+
 def _offset_holds_out(integral, ta, tb, wb, taus, blocks) -> bool:
-    """A clock offset is applied only where it predicts: in every time block, the offset the other
-    blocks found matches the block's rate magnitudes better than no offset (a sign test with 1
-    chance in 2^10 for an offset that tells nothing, as at a 1 Hz reference on a slow body)."""
+    """A clock offset is applied only where it predicts (:func:`_predicts`): in a block, the offset
+    the other blocks found against no offset (as at a 1 Hz reference on a slow body, it tells
+    nothing)."""
     nb = np.linalg.norm(wb, axis=1)
+    with_it, without = [], []
     for i, b in enumerate(blocks):
         other = float(np.mean(np.delete(taus, i)))
-        if not _offset_cost(integral, ta[b], tb[b], nb[b], other) < _offset_cost(integral, ta[b], tb[b], nb[b], 0.0):
-            return False
-    return True
+        with_it.append(_offset_cost(integral, ta[b], tb[b], nb[b], other, 1))
+        without.append(_offset_cost(integral, ta[b], tb[b], nb[b], 0.0, 1))
+    return _predicts(with_it, without)
 
 
 def _rotation_holds_out(wg, wb, blocks) -> bool:
-    """A frame rotation is applied only where it predicts: in every time block, the rotation fitted
-    on the other blocks matches the block's rates better than the frames as given. A reference
-    consistent as given is never turned (a fitted rotation always beats the identity on the data
-    it was fitted to, by the noise it absorbs)."""
+    """A frame rotation is applied only where it predicts (:func:`_predicts`): in a block, the
+    rotation fitted on the other blocks against the frames as given. A reference consistent as
+    given is not turned (a fitted rotation always beats the identity on the data it was fitted
+    to, by the noise it absorbs, but not on data it was not)."""
     m = np.isfinite(wg).all(1) & np.isfinite(wb).all(1)
+    with_it, without = [], []
     for i, b in enumerate(blocks):
         rest = np.concatenate([x for j, x in enumerate(blocks) if j != i])
         rest, b = rest[m[rest]], b[m[b]]
@@ -204,9 +248,21 @@ def _rotation_holds_out(wg, wb, blocks) -> bool:
             return False
         R = _rotation(wg[rest], wb[rest])
         a, c = wg[b] - np.mean(wg[b], 0), wb[b] - np.mean(wb[b], 0)
-        if not np.sum((a - c @ R.T) ** 2) < np.sum((a - c) ** 2):
-            return False
-    return True
+        with_it.append(float(np.sum((a - c @ R.T) ** 2)))
+        without.append(float(np.sum((a - c) ** 2)))
+    return _predicts(with_it, without)
+
+
+#: below this many reference spans per time block the intervals come from the jackknife (each
+#: estimate without one block) rather than from each block's own estimate
+JACKKNIFE_BELOW = 30
+
+
+def _jackknife_se(loo) -> float:
+    """The delete-one-block jackknife's standard error from the estimates without each block."""
+    loo = np.asarray(loo, float)
+    B = len(loo)
+    return float(math.sqrt((B - 1) / B * np.sum((loo - loo.mean()) ** 2)))
 
 
 def alignment_step(run) -> Alignment:
@@ -222,7 +278,7 @@ def alignment_step(run) -> Alignment:
     dt, w = run["dt"], run["w"]
     # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
     span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
-    ta, tb, wb = _ref_rates(tq, q, span)
+    ta, tb, wb = _ref_rates(tq, q, span, max(1, span // SPAN_STRIDE))
     if len(ta) < MIN_SPANS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
         return Alignment(None, run)
     integral = _gyro_integral(run["t"], w)
@@ -231,18 +287,31 @@ def alignment_step(run) -> Alignment:
     reach = max(MAX_OFFSET_S, 0.5 * float(np.median(np.diff(tq))))
     tau = _offset(integral, ta, tb, wb, dt, reach)
     blocks = np.array_split(np.arange(len(ta)), N_BLOCKS)
-    taus = np.array([_offset(integral, ta[b], tb[b], wb[b], dt, reach) for b in blocks])
-    tau_se = float(np.std(taus, ddof=1) / math.sqrt(N_BLOCKS))
+    # the blocks' own estimates, or where a block holds too few spans for one (a reference at 1 Hz or
+    # less) the jackknife's: each estimate from the other blocks (then ``_offset_holds_out`` judges
+    # each block by the value found without it either way)
+    sparse = len(ta) < JACKKNIFE_BELOW * N_BLOCKS
+    rest = [np.concatenate([x for j, x in enumerate(blocks) if j != i]) for i in range(N_BLOCKS)]
+    if sparse:
+        loo = np.array([_offset(integral, ta[r], tb[r], wb[r], dt, reach) for r in rest])
+        taus = np.sum(loo) - (N_BLOCKS - 1) * loo  # pseudo-values: mean of the others = loo
+        tau_se = _jackknife_se(loo)
+    else:
+        taus = np.array([_offset(integral, ta[b], tb[b], wb[b], dt, reach) for b in blocks])
+        tau_se = float(np.std(taus, ddof=1) / math.sqrt(N_BLOCKS))
     use_tau = abs(tau) > Z_APPLY * tau_se and abs(tau) > MIN_OFFSET_STEPS * dt and \
         _offset_holds_out(integral, ta, tb, wb, taus, blocks)
-    wg = _gyro_mean(integral, ta - (tau if use_tau else 0.0), tb - (tau if use_tau else 0.0))
+    # the frame is fitted at the best clock, whether or not the offset is applied (a lag within the
+    # gyro's sampling convention, half a step, would otherwise be turned into a rotation)
+    wg = _gyro_mean(integral, ta - tau, tb - tau)
     Rm = _rotation(wg, wb)
     rv = Rotation.from_matrix(Rm).as_rotvec()
     # the blocks' rotations about the whole run's (near 180 deg a rotation vector flips its sign
     # from block to block; their differences from the whole run's do not)
     rvs = np.array([(Rotation.from_matrix(Rm).inv() * Rotation.from_matrix(_rotation(wg[b], wb[b]))).as_rotvec()
-                    for b in blocks])
-    rv_se = np.std(rvs, axis=0, ddof=1) / math.sqrt(N_BLOCKS)
+                    for b in (rest if sparse else blocks)])
+    rv_se = np.array([_jackknife_se(rvs[:, i]) for i in range(3)]) if sparse else \
+        np.std(rvs, axis=0, ddof=1) / math.sqrt(N_BLOCKS)
     angle = float(np.linalg.norm(rv))
     angle_se = float(np.sqrt(np.sum((rv / max(angle, 1e-300)) ** 2 * rv_se**2))) if angle > 0 else float(np.linalg.norm(rv_se))
     z = 1.96
@@ -293,3 +362,22 @@ def alignment_step(run) -> Alignment:
             f"its frame turned by {fmt(math.degrees(angle))} deg [{fmt(math.degrees(max(angle - z * angle_se, 0)))}, "
             f"{fmt(math.degrees(angle + z * angle_se))}] into the gyro's" if use_rot else "") if x))
     return Alignment(alignment, aligned, Said(notes=(note,)))
+
+
+#: the reference's clock is settled where the offset left in it is at most this [s] (95 %)
+CLOCK_SETTLED_S = 0.002
+
+
+def clock_settled(alignment) -> bool:
+    """Whether the clock offset left between the reference and the gyro is within
+    :data:`CLOCK_SETTLED_S`: the applied offset's interval half-width, or, where none was applied, the
+    farthest end of the estimate's interval from zero. An offset delta left in a reference of a body
+    oscillating at f reads as a scale of about 2 pi^2 f^2 delta^2 (at 3 Hz and 30 ms, 1.15: seen) and,
+    to first order, as noise that telescopes; where the alignment found too few spans or too little
+    motion to say, it is taken as settled (the motion then hardly shows an offset)."""
+    if not alignment:
+        return True
+    lo, hi = alignment["clock_offset_interval_s"]
+    if alignment["applied"]["clock_offset"]:
+        return 0.5 * (hi - lo) <= CLOCK_SETTLED_S
+    return max(abs(lo), abs(hi)) <= CLOCK_SETTLED_S

@@ -45,9 +45,10 @@ from ...models._quaternion import (
     rotation_matrix_np,
 )
 from .._diffnoise import mad_sigma
+from ._common import MIN_INTERVAL_ROWS
 from ._gyro import convention_terms, reference_fit
 
-__all__ = ["interval_rates", "consistency", "rejudge", "thinned_anchors", "thinned", "MIN_THINNED_INTERVALS", "still_rows", "RECHECK_SCALE_SE", "RECHECK_CHI2", "AXES",
+__all__ = ["interval_rates", "consistency", "rejudge", "anchor_rows", "thinned_anchors", "thinned", "MIN_THINNED_INTERVALS", "still_rows", "RECHECK_SCALE_SE", "RECHECK_CHI2", "AXES",
            "STILL_GYRO", "STILL_REF", "REF_DEV", "REF_JUMP", "SPIKE_SPAN", "WINDOW_S"]
 
 AXES = ("x", "y", "z")
@@ -342,7 +343,7 @@ def rejudge(run, fit0, use, spans, spikes, valid, int_seg, anchors, var_rate, sa
             use2, spans2 = heading_only_cells(use2, spans2)
         if np.array_equal(use2, use):
             break
-        fit2 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use2)
+        fit2 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use2, ref_var=fit0.get("ref_var", 0.0))
         if fit2["chi2"] / max(fit2["dof"], 1) > RECHECK_CHI2 * fit0["chi2"] / max(fit0["dof"], 1):
             break  # the cells given back do not fit the gyro's effects: the reference is inconsistent there
         notes.append(f"the reference judged again against the gyro corrected for its fitted bias and scale: "
@@ -402,3 +403,15 @@ def thinned(run, anchors, use, valid, var_rate):
             f"interval: judged over {len(anchors) - 1} intervals, compared with the gyro over {m} longer ones, "
             "where it telescopes away")
     return thin, use_t & valid_t[:, None], valid_t, [note]
+
+
+def anchor_rows(ref_rows):
+    """Anchor rows: at most 3000 intervals of at least :data:`MIN_INTERVAL_ROWS` rows.
+
+    Over a few steps the interpolated step rates share samples, so the interval errors are neither
+    independent nor of variance N^2 dt_i (chi2/dof 0.6 for single steps), and the scale's
+    errors-in-variables correction no longer holds; from about 10 rows on both do (measured).
+    """
+    step = max(MIN_INTERVAL_ROWS, int(math.ceil((ref_rows[-1] - ref_rows[0]) / 3000.0)))
+    grid = np.arange(ref_rows[0], ref_rows[-1], step)
+    return np.unique(np.concatenate([ref_rows[np.searchsorted(ref_rows, grid)], ref_rows[-1:]]))

@@ -27,7 +27,7 @@ from ...models._quaternion import (
     rotation_matrix_np,
 )
 
-__all__ = ["reference_fit", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
+__all__ = ["reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
 
 
 def _interval_sums(X, starts, ends):
@@ -44,9 +44,60 @@ def convention_terms(wc):
     return w0, (w1 - w0) - (w2 - w1 - w0 + wm) / 12.0
 
 
+def _tridiag_inv_diag(d, o):
+    """Diagonal of the inverse of the symmetric tridiagonal matrix with diagonal ``d`` and
+    off-diagonal ``o`` (len(d) - 1), by the two ratio recurrences (no overflow at any size)."""
+    n = len(d)
+    r = np.empty(n)
+    s_ = np.empty(n)
+    r[0] = d[0]
+    for i in range(1, n):
+        r[i] = d[i] - o[i - 1] ** 2 / r[i - 1]
+    s_[-1] = d[-1]
+    for i in range(n - 2, -1, -1):
+        s_[i] = d[i] - o[i] ** 2 / s_[i + 1]
+    return 1.0 / (r + s_ - d)
+
+
+def _whiteners(noise_var, ref_var, dt_int, use):
+    """Per global axis: (used interval indices, the lower banded Cholesky factor of their residuals'
+    covariance, the diagonal of its inverse). An interval's residual holds the gyro's white noise
+    integrated over it (``noise_var dt_i``) and the reference's own attitude noise at both of its
+    rows (``2 ref_var``); neighbours share a row, so they covary by ``-ref_var`` (white attitude noise
+    read interval by interval: it telescopes over a run, and the weighting by this covariance is the
+    generalised least squares that lets it)."""
+    from scipy.linalg import cholesky_banded
+
+    out = []
+    for a in range(3):
+        u = np.nonzero(use[:, a])[0]
+        d = noise_var * dt_int[u] + 2.0 * ref_var
+        o = np.where(np.diff(u) == 1, -ref_var, 0.0)
+        ab = np.zeros((2, len(u)))
+        ab[0] = d
+        ab[1, :-1] = o
+        out.append((u, cholesky_banded(ab, lower=True) if len(u) else ab, _tridiag_inv_diag(d, o) if len(u) else d))
+    return out
+
+
+def _whiten(white, X):
+    """``X`` (n_int, 3, ...) with each axis's used rows replaced by L^-1 of them (unused rows 0)."""
+    from scipy.linalg import solve_banded
+
+    out = np.zeros_like(X)
+    for a, (u, L, _) in enumerate(white):
+        if len(u):
+            out[u, a] = solve_banded((1, 0), L, X[u, a].reshape(len(u), -1)).reshape(X[u, a].shape)
+    return out
+
+
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
-                  use=None, hold_scale=(), hold_bias=()):
+                  use=None, hold_scale=(), hold_bias=(), ref_var=0.0):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
+
+    ``ref_var``: the reference's own attitude noise variance per row and axis [rad^2]; where it is
+    positive the fit is generalised least squares with the intervals' covariance of
+    :func:`_whiteners` (else weighted, each interval ``noise_var dt_i``).
 
     ``hold_scale``: channels whose scale is held at 1, ``hold_bias``: parameter indices of biases held
     at 0 (what the run does not determine, so that the rest is judged on its own).
@@ -76,7 +127,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     # exponential map of omega_k) give lam = 0; a small gyro delay shifts lam. It is fitted: its
     # regressor telescopes over an interval, so it costs the other parameters almost nothing, while a
     # wrong fixed convention leaves O(dt) errors per interval that look like scale errors.
-    p = sc + 4
+    # with the reference's noise weighed (GLS), a clock offset tau left between it and the gyro is a
+    # nuisance parameter too: its error over an interval, R_b w_b tau - R_a w_a tau, telescopes like
+    # the noise but follows the motion, and unfitted it would be read as a scale
+    p = sc + 4 + (ref_var > 0)
     theta = np.zeros(p)
     theta[sc : sc + 3] = 1.0
     theta[sc + 3] = 0.5
@@ -86,8 +140,16 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     dt_int = (ends - starts) * dt
     wts = 1.0 / (noise_var * dt_int)  # per interval (each of 3 components)
     use = np.ones((n_int, 3), bool) if use is None else np.asarray(use, bool)
-    Wf = (wts[:, None] * use).reshape(-1)
-    w_int = wts * use.mean(1)  # the errors-in-variables weight of each interval
+    white = _whiteners(noise_var, ref_var, dt_int, use) if ref_var > 0 else None
+    if white is None:
+        Wf = (wts[:, None] * use).reshape(-1)
+        w_int = wts * use.mean(1)  # the errors-in-variables weight of each interval
+    else:  # whitened rows: unit weights; the errors-in-variables weight is the precision's diagonal
+        Wf = use.astype(float).reshape(-1)
+        prec = np.zeros((n_int, 3))
+        for a, (u, _, dinv) in enumerate(white):
+            prec[u, a] = dinv
+        w_int = prec.mean(1)
     for it in range(max_iter):
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
@@ -109,6 +171,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         qb = q_ref[ends]
         err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
         e = quat_log_np(err_q)  # (n_int, 3) global frame
+        if p > sc + 4:
+            Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
+            J_tau = Rw[1:] - Rw[:-1]
+            e = e + J_tau * theta[sc + 4]
         # attitude of each row, anchored on its interval's reference
         anc = anchors[int_of_row]
         G = quat_multiply_np(quat_multiply_np(q_ref[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
@@ -121,8 +187,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
             J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
             J[:, :, sc + c] = -RS[:, :, c] / s[c]
         J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
-        Jf = J.reshape(-1, p)
-        ef = e.reshape(-1)
+        if p > sc + 4:
+            J[:, :, sc + 4] = J_tau
+        Jf = (J if white is None else _whiten(white, J)).reshape(-1, p)
+        ef = (e if white is None else _whiten(white, e)).reshape(-1)
         H = Jf.T @ (Wf[:, None] * Jf)
         g = Jf.T @ (Wf * ef)
         # errors in variables: the scale regressor sum R omega_c dt carries the same white noise as e;
@@ -158,16 +226,45 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     cov = np.linalg.pinv(H, rcond=1e-12)
     # per-interval scores (the gradient's share of each interval at the solution), for the
     # cluster-robust covariance of :func:`cluster_cov`
-    scores = np.einsum("nkp,nk->np", J, (Wf * res).reshape(n_int, 3))
+    scores = np.einsum("nkp,nk->np", Jf.reshape(n_int, 3, p), (Wf * res).reshape(n_int, 3))
     return {
         "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
-        "e": e, "res": res.reshape(-1, 3), "dt_int": dt_int, "lam": float(theta[sc + 3]), "weak_scale": weak,
-        "scores": scores, "H": H,
+        "e": e, "res": res.reshape(-1, 3), "res_rad": e + np.einsum("nkp,p->nk", J, step), "dt_int": dt_int,
+        "lam": float(theta[sc + 3]), "weak_scale": weak, "scores": scores, "H": H, "use": use, "ref_var": ref_var,
     }
 
 
+def reference_noise_var(fit) -> float:
+    """The reference's own attitude noise variance per row and axis [rad^2] from a fit's residuals
+    (0 where it does not show): white attitude noise makes neighbouring intervals' residuals covary
+    by ``-ref_var`` while the gyro's noise leaves them independent, so one interval's spread is
+    ``2 ref_var + N^2 dt`` and two neighbours' sum's ``2 ref_var + 2 N^2 dt``: ``ref_var`` is the first
+    less half the second (robust spreads: an optical marker's few jumps are outliers, not noise).
+    Counted only where it is beyond three of its own standard errors (from the spreads' sampling
+    error), so that a reference without noise is not given any."""
+    from .._diffnoise import mad_sigma
+
+    r, use = np.asarray(fit["res_rad"]), np.asarray(fit["use"], bool)
+    v1, v2, n = [], [], 0
+    for a in range(3):
+        pair = use[:-1, a] & use[1:, a]
+        if pair.sum() < 10:
+            continue
+        v1.append(mad_sigma(r[:-1, a][pair]) ** 2)
+        v2.append(mad_sigma(r[:-1, a][pair] + r[1:, a][pair]) ** 2)
+        n += int(pair.sum())
+    if not v1:
+        return 0.0
+    v1m, v2m = float(np.mean(v1)), float(np.mean(v2))
+    est = v1m - 0.5 * v2m
+    # a MAD spread's square has a sampling variance of about 5.4 v^2 / n (normal data, 37 %
+    # efficiency); doubled for the two spreads' dependence
+    se = math.sqrt(10.8 / n) * math.sqrt(v1m**2 + 0.25 * v2m**2)
+    return est if est > 3.0 * se else 0.0
+
+
 def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), use=None,
-                  hold_scale=(), hold_bias=()):
+                  hold_scale=(), hold_bias=(), ref_var=0.0):
     """:func:`reference_fit` on every other row (step 2 dt) between the anchors of the same parity as
     the first one (each interval keeps its segment), or None where fewer than two intervals remain.
 
@@ -189,7 +286,7 @@ def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         last_int = np.searchsorted(anchors, anc[1:], side="right") - 2
         use2 = np.stack([use[a : b + 1].all(0) for a, b in zip(first_int, last_int)])
     return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var, use=use2, hold_scale=hold_scale,
-                         hold_bias=hold_bias)
+                         hold_bias=hold_bias, ref_var=ref_var)
 
 
 def cluster_cov(fit, cluster_of_interval):
@@ -299,3 +396,64 @@ def static_segment(w, dt, sigma):
     seg = w[i0 * W : i1 * W]
     return {"rows": (i0 * W, i1 * W), "mean": seg.mean(0), "n": seg.shape[0], "data": seg}
 
+
+
+#: a scale is named only where the run's two halves, fitted apart, agree within this many standard
+#: errors of their difference
+HALVES_Z = 3.0
+
+
+def gyro_halves(fit_fn, use, *args, **kw):
+    """The scales, and the constant biases, fitted on the first and on the second half of the
+    intervals apart (each half with the same model): ``{("scale" | "bias", channel): (agree, first,
+    second)}``, agreeing where within :data:`HALVES_Z` standard errors of their difference. A scale
+    or a bias is a constant of the gyro, while a bias wandering within its segments, or a reference
+    whose error follows one stretch (an estimator converging), leaks into each half differently."""
+    n_int = len(use)
+    out = {}
+    fits = []
+    for half in (slice(0, n_int // 2), slice(n_int // 2, n_int)):
+        u = np.zeros_like(use)
+        u[half] = use[half]
+        fits.append(fit_fn(*args, use=u, **kw))
+    offs = fits[0]["offs"]
+    for kind, c, i in [("scale", c, offs[-1] + c) for c in range(3)] + \
+            [("bias", c, offs[c]) for c in range(3) if offs[c + 1] - offs[c] == 1]:
+        a, b = (float(f["theta"][i]) for f in fits)
+        v = sum(max(float(f["cov"][i, i]), 0.0) * max(1.0, f["chi2"] / f["dof"]) for f in fits)
+        out[(kind, c)] = (abs(a - b) <= HALVES_Z * math.sqrt(v), a, b)
+    return out
+
+
+def test_se(se_model, se_interval, infl, coloured=False):
+    """The standard error a finding is tested with: the model's (residual-inflated) one; where the
+    residuals between reference rows are more than twice the white-noise level in variance (a real
+    reference, with its own errors and a gyro filtered before logging: the white model is evidently
+    wrong), the interval's one (cluster-robust, integration) when larger; where they are coloured
+    (``coloured``: vibration, or correlated between neighbouring intervals), the interval's one."""
+    if coloured:
+        return se_interval
+    return max(se_model, se_interval) if infl > 2.0 else se_model
+
+
+
+
+#: the weighted (GLS) fit is kept where its biases and scales are within this many of the
+#: unweighted fit's cluster-robust standard errors of the unweighted fit's
+GLS_AGREE_Z = 4.0
+
+
+def gls_agrees(fit_w, fit_g, z=GLS_AGREE_Z) -> bool:
+    """A specification test in Hausman's manner for weighing the reference's noise: both fits are
+    consistent where the reference's error is white per row, the weighted one then the more precise,
+    so they differ by about the unweighted one's (cluster-robust) error. Where the reference's error
+    is smooth instead (an estimator converging, a slow wobble of its frame), the weighted fit leans
+    on it row by row and moves far: the weights are wrong, and not used."""
+    n = len(fit_w["dt_int"])
+    G = int(np.clip(n // 10, 1, 16))
+    V = cluster_cov(fit_w, (np.arange(n) * G) // n)
+    idx = np.arange(fit_w["offs"][-1] + 3)  # the biases and the scales
+    d = np.abs(fit_w["theta"][idx] - fit_g["theta"][idx])
+    se = np.sqrt(np.maximum(np.diag(V)[idx], 0.0)) * math.sqrt(max(1.0, fit_w["chi2"] / fit_w["dof"]) if G < 3 else 1.0)
+    ok = se > 0
+    return bool(np.all(d[ok] <= z * se[ok]))

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import replace
+from functools import partial
 
 import numpy as np
 from scipy import stats
@@ -40,7 +41,7 @@ from ...models._quaternion import (
 )
 from ._causes import GYRO_BIAS, GYRO_BIAS_DRIFT, GYRO_NOISE, GYRO_SCALE, gyro_inverse
 from ._array import array_step
-from ._consistency import consistency, rejudge, still_rows, thinned
+from ._consistency import anchor_rows, consistency, rejudge, still_rows, thinned
 from ._realworld import (
     degenerate,
     finite_segments,
@@ -61,16 +62,16 @@ from ._common import (
     DRIFT_LR,
     DRIFT_LR_GIVEN_BIAS,
     DRIFT_OFF_DEG,
-    MIN_INTERVAL_ROWS,
     SCALE_FLOOR,
     Z_COLOURED,
     Z_SIGNIFICANT,
     fmt,
 )
-from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reml_drift, rw_cov,
+from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reference_noise_var, reml_drift, rw_cov,
+                    gls_agrees, gyro_halves, test_se,
                     static_segment)
 from ._noise import allan, estimate_white_noise, white_noise_recorded
-from ._alignment import alignment_step
+from ._alignment import alignment_step, clock_settled
 from ._vibration import vibration_step
 from ._records import Comparison, Diagnosis, GyroModel, GyroNoise, Said, Vibration
 from ._report import assemble_report
@@ -121,7 +122,7 @@ def diagnose_records(run, positions=None) -> Diagnosis:
     if n_ref >= 2:
         al = alignment_step(run)
         run, alignment, said = al.run, al.alignment, said + al.said
-        comp, noise = reference_step(run, n_ref, noise, vib)
+        comp, noise = reference_step(run, n_ref, noise, vib, clock_settled(alignment))
     else:
         comp = static_segment_step(run, n_ref, noise)
         still = None
@@ -192,7 +193,7 @@ def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
 # --------------------------------------------------------------------------- reference attitude
 
 
-def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple[Comparison, GyroNoise]:
+def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=True) -> tuple[Comparison, GyroNoise]:
     """Biases, scales and bias drift from two or more reference rows; attitude error and gain. Also
     the gyro noise as the reference tells it (:func:`._realworld.noise_kind_step`)."""
     t, dt, w, n = run["t"], run["dt"], run["w"], len(run["t"])
@@ -200,7 +201,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
     notes, observed, not_observed = [], [], []
     findings = []
     ref_rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
-    anchors = _anchors(ref_rows)
+    anchors = anchor_rows(ref_rows)
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
     valid = gap_mask(run, anchors)
     use, ref_spans, still_int = consistency(w, dt, q_ref, anchors, t, valid)
@@ -210,14 +211,25 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
         use, ref_spans = heading_only_cells(use, ref_spans)
         notes.append("the reference is a heading only: compared with the gyro about the vertical alone")
     still = still_rows(n, anchors, still_int)
-    anchors, use, valid, said_thin = thinned(run, anchors, use, valid, noise.var_rate)  # judged finely, fitted coarser
-    notes, n_int = notes + said_thin, len(anchors) - 1
+    var_rate0, noise = noise.var_rate, noise_kind_step(run, noise, still, vib)
+    var_rate, sample_var, fit_ref = noise.var_rate, noise.sigma_axis**2, reference_fit
+    # the reference's noise: weighed (GLS) on a settled clock where it shows, else telescoped (``thinned``)
+    one = ([np.zeros(len(anchors) - 1, int)] * 3, anchors, sample_var)
+    fit_w = fit_ref(run, var_rate, *one, use=use)
+    ref_var = reference_noise_var(fit_w) if settled else 0.0
+    if ref_var > 0 and not gls_agrees(fit_w, reference_fit(run, var_rate, *one, use=use, ref_var=ref_var)):
+        ref_var = 0.0  # the reference's error is not white per row (an estimator converging): not weighed
+        notes.append("the reference's own noise is not weighed: its fit disagrees with the unweighted one (Hausman)")
+    if ref_var > 0:
+        fit_ref = partial(reference_fit, ref_var=ref_var)
+        notes.append(f"the reference's own noise ({fmt(math.sqrt(ref_var))} rad per row, from neighbouring residuals) weighs the fit (GLS)")
+    else:
+        anchors, use, valid, said_thin = thinned(run, anchors, use, valid, var_rate0)
+        notes += said_thin
+    n_int = len(anchors) - 1
     M = int(np.clip(min(n_int // 10, (anchors[-1] - anchors[0]) * dt / 2.0), 1, 16))  # bias segments (drift test)
     int_seg = np.minimum((np.arange(n_int) * M) // n_int, M - 1)
-    noise = noise_kind_step(run, noise, still, vib)
-    var_rate = noise.var_rate
-    sample_var = noise.sigma_axis**2
-    fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+    fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     if abs(fit0["lam"]) > LAM_RECHECK:
         # the gyro's samples follow another convention than a rate held over the step after each
         # (a motion-capture IMU's samples are the rate at their stamps): at a fast turn's angular
@@ -231,7 +243,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
             use, (ref_spans, spikes) = use2, split_spikes(spans2)
             if run.get("heading_only"):
                 use, ref_spans = heading_only_cells(use, ref_spans)
-            fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+            fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     # the reference is judged again against the gyro as the fit corrects it (:func:`._consistency.rejudge`)
     use, ref_spans, spikes, fit0, said_again = rejudge(run, fit0, use, ref_spans, spikes, valid, int_seg, anchors,
                                                       var_rate, sample_var, LAM_RECHECK)
@@ -243,33 +255,33 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
         if r < 1.0:
             var_rate *= r
             sample_var = sample_var * r
-            fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+            fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     r = residual_noise_scale(fit0)
     if vib is not None:
         # vibration averages out between reference rows: the intervals carry what their residuals
         # show, not the white noise of the quiet spans (the per-sample level stays that noise)
         var_rate *= r
-        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+        fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
         r = residual_noise_scale(fit0)
     if r > 1.5 and np.any(sample_var > 0):
         # the interval errors are r times (in variance) what white noise of the differences' level
         # gives (a low-pass filtered gyro: its differences see less noise than its integral carries):
         # the scales' errors-in-variables correction takes the level the intervals show
         sample_var = sample_var * r
-        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
+        fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use)
     # a scale on a null direction of the fit (a body that does not turn about that axis: the scale
     # and the bias say the same) is held at 1, so that the bias is judged on its own
     sc0 = fit0["offs"][-1]
     hold = tuple(c for c in range(3) if sc0 + c in degenerate(fit0))
     if hold:
-        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold)
+        fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold)
     # with axes of the reference left out, a bias about an axis that is nearly the left-out one keeps a
     # sliver of information (the tilt's share): held at 0, and said so, instead of spreading its
     # uncertainty into the other channels
     held = {}
     if run.get("heading_only"):  # the gyro axes off the vertical: seen only through the tilt
         held = {c: True for c in range(3) if c != vertical_axis(q_ref)}
-        fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
+        fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
                              hold_bias=_bias_idx(fit0, held))
     elif not use.all():
         for i in sorted(degenerate(fit0, tol=1e-3, share=0.5)):
@@ -277,7 +289,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
             if c < 3:
                 held[c] = True
         if held:
-            fit0 = reference_fit(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
+            fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, hold_bias=_bias_idx(fit0, held))
     observed.append(f"reference attitude on {n_ref} rows ({n_int} intervals used)")
     if M >= 4:
@@ -287,13 +299,15 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
         drift = {}
         not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
     seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
-    fit = reference_fit(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
+    fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
     if held:
-        fit = reference_fit(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
+        fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
                             hold_bias=_bias_idx(fit, held))
     fit["half_rate"] = half_rate_fit(run, var_rate, seg_final, anchors, sample_var, use=use,
-                                     hold_scale=hold)
+                                     hold_scale=hold, ref_var=ref_var)
     infl = max(1.0, fit["chi2"] / fit["dof"])
+    fit["halves"] = gyro_halves(fit_ref, use, run, var_rate, seg_final, anchors, sample_var, hold_scale=hold) \
+        if ref_var > 0 and n_int >= 40 else {}
     findings.extend(inconsistent_findings(ref_spans, use, float(t[-1] - t[0])))
     if spikes:
         notes.append(f"{len(spikes)} outlier(s) of the reference (up to {fmt(max(sp['rate'] for sp in spikes))} rad/s "
@@ -314,18 +328,6 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None) -> tuple
 
 def _bias_idx(fit, channels):
     return tuple(i for c in channels for i in range(fit["offs"][c], fit["offs"][c + 1]))
-
-
-def _anchors(ref_rows):
-    """Anchor rows: at most 3000 intervals of at least MIN_INTERVAL_ROWS rows.
-
-    Over a few steps the interpolated step rates share samples, so the interval errors are neither
-    independent nor of variance N^2 dt_i (chi2/dof 0.6 for single steps), and the scale's
-    errors-in-variables correction no longer holds; from about 10 rows on both do (measured).
-    """
-    step = max(MIN_INTERVAL_ROWS, int(math.ceil((ref_rows[-1] - ref_rows[0]) / 3000.0)))
-    grid = np.arange(ref_rows[0], ref_rows[-1], step)
-    return np.unique(np.concatenate([ref_rows[np.searchsorted(ref_rows, grid)], ref_rows[-1:]]))
 
 
 def _drift_tests(dt, fit0, anchors, int_seg, M, use):
@@ -429,7 +431,11 @@ def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, 
         elif not 0.5 < s_hat < 2.0:
             undetermined += Said.undetermined(GYRO_SCALE.name, ch, f"the fitted ratio {fmt(s_hat)} is no gyro's scale: the reference and "
                            "the gyro disagree in a way no scale explains" + why_lost)
-        elif abs(s_hat - 1) / _test_se(s_se, s_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(s_hat - 1) > SCALE_FLOOR:
+        elif abs(s_hat - 1) > SCALE_FLOOR and not fit["halves"].get(("scale", c), (True,))[0] and \
+                abs(s_hat - 1) / test_se(s_se, s_half / z95, infl, coloured) > Z_SIGNIFICANT:
+            undetermined += Said.undetermined(GYRO_SCALE.name, ch, "the run's halves, fitted apart, read {} and {}: no "
+                                              "constant scale".format(*(fmt(x) for x in fit["halves"][("scale", c)][1:])))
+        elif abs(s_hat - 1) / test_se(s_se, s_half / z95, infl, coloured) > Z_SIGNIFICANT and abs(s_hat - 1) > SCALE_FLOOR:
             scale[c] = s_hat
             findings.append(GYRO_SCALE.finding(
                 float(s_hat), [float(s_hat - s_half), float(s_hat + s_half)],
@@ -466,8 +472,12 @@ def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, 
             corrections[ch] = replace(corrections[ch], bias_drift=float(d["K"]))
         bias_se[c] = b0_half / z95
         bias_fit[ch] = (float(b0), float(b0_half))
-        if abs(b0) / _test_se(b0_se, b0_half / z95, infl, coloured) > (Z_COLOURED if coloured else Z_SIGNIFICANT) \
-                and abs(b0) > BIAS_FLOOR:
+        bias_z = abs(b0) / test_se(b0_se, b0_half / z95, infl, coloured)
+        if bias_z > (Z_COLOURED if coloured else Z_SIGNIFICANT) and abs(b0) > BIAS_FLOOR and \
+                not fit["halves"].get(("bias", c), (True,))[0]:
+            undetermined += Said.undetermined(GYRO_BIAS.name, ch, "the run's halves, fitted apart, read {} and {} rad/s: no "
+                                              "constant bias".format(*(fmt(x) for x in fit["halves"][("bias", c)][1:])))
+        elif bias_z > (Z_COLOURED if coloured else Z_SIGNIFICANT) and abs(b0) > BIAS_FLOOR:
             corrections[ch] = replace(corrections[ch], bias=float(b0))
             if c not in drift:
                 bias_path[:, c] = b0
@@ -478,17 +488,6 @@ def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, 
                 abs(b0) / b0_se, channel=ch))
     model = GyroModel(corrections, bias_path, scale, "reference", scale_se, bias_se, bias_fit)
     return model, findings, Said(notes=tuple(notes)) + undetermined
-
-
-def _test_se(se_model, se_interval, infl, coloured=False):
-    """The standard error a finding is tested with: the model's (residual-inflated) one; where the
-    residuals between reference rows are more than twice the white-noise level in variance (a real
-    reference, with its own errors and a gyro filtered before logging: the white model is evidently
-    wrong), the interval's one (cluster-robust, integration) when larger; where they are coloured
-    (``coloured``: vibration, or correlated between neighbouring intervals), the interval's one."""
-    if coloured:
-        return se_interval
-    return max(se_model, se_interval) if infl > 2.0 else se_model
 
 
 def _correlated_scores(fit, z=4.0):
