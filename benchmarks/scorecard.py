@@ -18,9 +18,10 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   a sensor effect or with an error of a chassis spring or damper;
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
-- ``attitude-standard/indep`` and ``attitude-wide/indep``: ``validation/gen_attitude.py``; the wide
-  design draws references at 100 Hz down to 0.2 Hz, turned frames and axis conventions, clock
-  offsets, noisy and converging references, and vibration of 0.05-1 rad/s per sample;
+- ``attitude-standard/indep``, ``attitude-wide/indep`` and ``attitude-wide2/indep``:
+  ``validation/gen_attitude.py``; the wide design draws references at 100 Hz down to 0.2 Hz, turned
+  frames and axis conventions, clock offsets, noisy and converging references, and vibration of
+  0.05-1 rad/s per sample (``wide2``: a second seed, added after the first was tuned on);
 - ``attitude-standard/own`` and ``attitude-wide/own``: jaxdrift's own attitude generator
   (``jaxdrift.studies._attgen``, ``diagnose_attitude_sweep.py``), the wide one with its reference
   thinned to 0.2-100 Hz, turned, and noisy;
@@ -113,6 +114,8 @@ WORLDS = [
     World("vehicle-modes/indep", "vehicle", "exudyn", 20261218, 32, 2, {"design": "modes"}),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
+    # a second draw of the wide design, added after the first was tuned on (never tuned on itself)
+    World("attitude-wide2/indep", "attitude", "indep_attitude", 20261219, 28, 4, {"design": "wide"}),
     World("attitude-standard/own", "attitude", "own_attitude", 20261213, 12, 2),
     World("attitude-wide/own", "attitude", "own_attitude", 20261214, 16, 3, {"wide": True}),
     World("campaign/indep", "campaign", "campaign", 20261215, 2, 0, {"runs": (4, 8)}),
