@@ -45,3 +45,17 @@ def test_reference_noise_lowers_visibility_and_sparser_rows_keep_it_for_a_bias()
     case["reference"] = {"noise_rad": 5e-3}
     z_noisy = ga.visibility(case, tau, q, w, np.zeros_like(w), every, tau[every])["gyro_bias:wx"]
     assert z_noisy < 0.9 * z_sparse
+
+
+def test_the_truth_records_a_bias_walks_realised_level():
+    """``generate`` writes the realised mean and spread of each axis's bias random walk (a constant
+    bias fitted to the run can at most be right about that level); a walk of intensity K over T
+    seconds has a spread of about K sqrt(T / 3) about its start, here checked within a factor 3."""
+    case = ga.make_case({"index": 0, "stratum": "single", "what": ["gyro_bias_drift"], "seed": 11},
+                        durations=(40.0, 40.0), rates=(100,))
+    cols, extra = ga.generate(case)
+    (ax, real), = extra["drift_realised"].items()
+    K = next(e["value"] for e in case["effects"] if e["cause"] == "gyro_bias_drift")
+    assert ax == next(e["channel"] for e in case["effects"] if e["cause"] == "gyro_bias_drift")
+    scale = K * math.sqrt(case["duration"] / 3.0)
+    assert np.isfinite(real["mean"]) and scale / 3.0 < real["std"] + abs(real["mean"]) < 3.0 * scale, (real, scale)

@@ -315,7 +315,10 @@ def generate(case: dict) -> tuple[dict, dict]:
     if "gyro_noise" in eff:
         w_meas += eff["gyro_noise"]["value"] / math.sqrt(dt) * nrng.standard_normal((n, 3))
     cols = {"t": case["t0"] + tau, "wx": w_meas[:, 0], "wy": w_meas[:, 1], "wz": w_meas[:, 2]}
-    extra = {}
+    # a bias random walk's realised level over the run (its mean) and its spread about it, per axis
+    # that drifts: what a constant bias fitted to this run can at most be right about
+    extra = {"drift_realised": {ax: {"mean": float(np.mean(drift[:, j])), "std": float(np.std(drift[:, j]))}
+                                for j, ax in enumerate(AXES) if "gyro_bias_drift" + ax in eff}}
     if t_ref is not None:
         extra["visibility"] = visibility(case, tau, q, w, drift, t_ref[0], tau[t_ref[0]] - ref["clock_offset_s"])
         rows, qr_rows = t_ref
