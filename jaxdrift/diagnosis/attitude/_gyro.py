@@ -150,6 +150,9 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         for a, (u, _, dinv) in enumerate(white):
             prec[u, a] = dinv
         w_int = prec.mean(1)
+    if p > sc + 4:  # the offset's regressor: the reference's attitudes and the gyro at the anchors only
+        Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
+        J_tau = Rw[1:] - Rw[:-1]
     for it in range(max_iter):
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
@@ -172,8 +175,6 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
         e = quat_log_np(err_q)  # (n_int, 3) global frame
         if p > sc + 4:
-            Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
-            J_tau = Rw[1:] - Rw[:-1]
             e = e + J_tau * theta[sc + 4]
         # attitude of each row, anchored on its interval's reference
         anc = anchors[int_of_row]
@@ -397,7 +398,6 @@ def static_segment(w, dt, sigma):
     return {"rows": (i0 * W, i1 * W), "mean": seg.mean(0), "n": seg.shape[0], "data": seg}
 
 
-
 #: a scale is named only where the run's two halves, fitted apart, agree within this many standard
 #: errors of their difference
 HALVES_Z = 3.0
@@ -434,8 +434,6 @@ def test_se(se_model, se_interval, infl, coloured=False):
     if coloured:
         return se_interval
     return max(se_model, se_interval) if infl > 2.0 else se_model
-
-
 
 
 #: the weighted (GLS) fit is kept where its biases and scales are within this many of the

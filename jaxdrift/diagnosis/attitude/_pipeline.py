@@ -215,7 +215,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
     var_rate, sample_var, fit_ref = noise.var_rate, noise.sigma_axis**2, reference_fit
     # the reference's noise: weighed (GLS) on a settled clock where it shows, else telescoped (``thinned``)
     one = ([np.zeros(len(anchors) - 1, int)] * 3, anchors, sample_var)
-    fit_w = fit_ref(run, var_rate, *one, use=use)
+    fit_w = fit_ref(run, var_rate, *one, use=use) if settled else None
     ref_var = reference_noise_var(fit_w) if settled else 0.0
     if ref_var > 0 and not gls_agrees(fit_w, reference_fit(run, var_rate, *one, use=use, ref_var=ref_var)):
         ref_var = 0.0  # the reference's error is not white per row (an estimator converging): not weighed
