@@ -187,9 +187,18 @@ def test_vehicle_run_is_analysed_on_its_longest_segment(tmp_path):
 
 # ----------------------------------------------------------------------------------- ULog
 
-def _synthetic_ulog(path, gaps=((400, 12),), seed=4026):
+def _w_integral(t):
+    """The running integral of :func:`_w` (analytic)."""
+    k = 2 * np.pi * F
+    return np.column_stack([0.3 * (1 - np.cos(k * t)) / k, 0.2 * np.sin(k * t) / k, 0.01 * t])
+
+
+def _synthetic_ulog(path, gaps=((400, 12),), seed=4026, windowed=False, drop=()):
     """The real fixture's sensor_combined and vehicle_attitude, with analytic rates at jittered
-    times (one gap) and an analytic reference at 50 Hz, written back by pyulog."""
+    times (one gap) and an analytic reference at 50 Hz, written back by pyulog. ``windowed``: the
+    rates are the exact means over their windows (``gyro_integral_dt`` the step before each, as
+    PX4 writes them; ``drop`` the samples the logger lost, their windows with them), else point
+    values at the stamps with ``gyro_integral_dt`` 0 (no windows)."""
     pyulog = pytest.importorskip("pyulog")
     u = pyulog.ULog(str(SMALL), ["sensor_combined", "vehicle_attitude"])
     rng = np.random.default_rng(seed)
@@ -198,9 +207,22 @@ def _synthetic_ulog(path, gaps=((400, 12),), seed=4026):
     t = _jittered_t(n, 0.004, rng, jitter=0.03, gaps=gaps) + 20.0
     sc.data["timestamp"] = np.round(t * 1e6).astype(np.uint64)
     t = sc.data["timestamp"] * 1e-6
-    w = _w(t)
+    if windowed:
+        d = np.r_[0.004, np.diff(t)]
+        d[1:][np.diff(t) > 0.006] = 0.004  # a window after a gap is one step long
+        sc.data["gyro_integral_dt"] = np.round(d * 1e6).astype(sc.data["gyro_integral_dt"].dtype)
+        d = sc.data["gyro_integral_dt"] * 1e-6
+        w = (_w_integral(t) - _w_integral(t - d)) / d[:, None]
+    else:
+        sc.data["gyro_integral_dt"] = np.zeros_like(sc.data["gyro_integral_dt"])
+        w = _w(t)
     for j in range(3):
         sc.data[f"gyro_rad[{j}]"] = w[:, j].astype(np.float32)
+    if drop:
+        keep = np.setdiff1d(np.arange(n), drop)
+        for k_ in list(sc.data):
+            sc.data[k_] = sc.data[k_][keep]
+        t, w = t[keep], w[keep]
     m = len(va.data["timestamp"])
     tq = t[0] + 0.02 * np.arange(m) + 0.001
     va.data["timestamp"] = np.round(tq * 1e6).astype(np.uint64)
@@ -247,10 +269,17 @@ def test_ulog_map_picks_fields_and_instances(tmp_path):
         read_attitude_run(str(path), map="wx=sensor_gyr:1.x")
 
 
-def test_real_ulog_and_its_csv_export_read_the_same(tmp_path, capsys):
+def test_real_ulog_and_its_csv_export_read_the_same(tmp_path, capsys, monkeypatch):
     pytest.importorskip("pyulog")
+    from jaxdrift.io import _logs
+
+    # the log's rates are window means (gyro_integral_dt), read as such; a CSV has no windows: the
+    # export is compared with the log read as points
+    assert read_attitude_run(str(SMALL))["time_base"]["windows"]["channels"] == ["wx", "wy", "wz"]
+    monkeypatch.setattr(_logs, "ULOG_WINDOWS", {})
     run = read_attitude_run(str(SMALL))
     tb = run["time_base"]
+    assert "windows" not in tb
     assert run["info"]["log"]["ver_hw"] == "CUBEPILOT_CUBEORANGE"  # real hardware, not SITL
     assert tb["fs"] == pytest.approx(204.58, rel=1e-3) and len(tb["gaps"]) == 1
     assert tb["gaps"][0]["duration_s"] == pytest.approx(0.1613, abs=2e-4)

@@ -20,7 +20,11 @@ with pyulog, rosbags, asammdf or numpy:
    at its time stamp, cut at the reference stamps) is integrated with ``scipy Rotation``, and the
    constant bias that makes it follow the reference's relative rotation is fitted by least squares
    over all intervals (Gauss-Newton, 3 passes); intervals holding a gyro gap (a step over 2.5
-   nominal) are skipped. Standard error: spread of 20 contiguous time-block estimates / sqrt(20).
+   nominal) are skipped. A PX4 log's rates are means over their own windows (``gyro_integral_dt``,
+   used where the windows cover at least 80 % of the time): there an interval holding a step longer
+   than its sample's window (a message the logger dropped) is skipped too, and the attitude is
+   stamped by ``timestamp_sample`` (the IMU sample it is of, a window's end) where the log has it;
+   such a reference's clock offset is reported, never applied. Standard error: spread of 20 contiguous time-block estimates / sqrt(20).
    Each half of the log is fitted separately. An axis is **clear** when ``|b| > 4 SE``,
    ``|b| > 0.3 mrad/s`` and the halves agree (within 4 combined SE or 25 % of ``b``).
 4. White gyro noise on still spans: 1 s windows in which the reference turns less than 0.02 rad/s
@@ -80,9 +84,21 @@ def read_ulog(path):
     u = ULog(str(path), ["sensor_combined", "vehicle_attitude", "estimator_sensor_bias", "actuator_armed"])
     sc = u.get_dataset("sensor_combined")
     va = u.get_dataset("vehicle_attitude")
-    out = {"tg": sc.data["timestamp"] * 1e-6,
+    tq = va.data["timestamp"] * 1e-6
+    sample_stamped = "timestamp_sample" in va.data and np.all(np.diff(va.data["timestamp_sample"].astype(float)) >= 0)
+    if sample_stamped:
+        tq = va.data["timestamp_sample"] * 1e-6  # the IMU sample the attitude is of: a window's end
+    tg = sc.data["timestamp"] * 1e-6
+    win = None
+    if "gyro_integral_dt" in sc.data:
+        win = sc.data["gyro_integral_dt"].astype(float)
+        win = win * 1e-6 if np.median(win) >= 1.0 else win  # microseconds (PX4 after v1.8) or seconds
+        steps = np.diff(tg)
+        if not np.all(win > 0) or np.sum(np.minimum(win[1:], steps)) < 0.8 * (tg[-1] - tg[0]):
+            win = None  # no windows, or windows that leave most of the time unmeasured: points
+    out = {"tg": tg, "win": win, "ref_sample_stamped": bool(sample_stamped),
            "w": np.column_stack([sc.data[f"gyro_rad[{i}]"] for i in range(3)]).astype(float),
-           "tq": va.data["timestamp"] * 1e-6,
+           "tq": tq,
            "q": np.column_stack([va.data[f"q[{i}]"] for i in range(4)]).astype(float),
            "hardware": u.msg_info_dict.get("ver_hw"), "onboard": [], "armed": None}
     for d in u.data_list:
@@ -174,6 +190,8 @@ def read_entry(entry):
     for tk, vk in (("tg", "w"), ("tq", "q")):
         keep = np.concatenate([[True], np.diff(d[tk]) > 0])
         d[tk], d[vk] = d[tk][keep], d[vk][keep]
+        if tk == "tg" and d.get("win") is not None:
+            d["win"] = d["win"][keep]
     return d
 
 
@@ -239,8 +257,10 @@ def frame_rotation(tg, w, tq, q):
     return rot, float(s[1] / s[0])
 
 
-def interval_errors(tg, w, tq, q, bias):
-    """Per reference interval: rotation vector of (integrated gyro)^-1 (reference), in the body."""
+def interval_errors(tg, w, tq, q, bias, win=None):
+    """Per reference interval: rotation vector of (integrated gyro)^-1 (reference), in the body.
+    ``win``: each gyro sample's logged window (PX4 ``gyro_integral_dt``); an interval holding a
+    step longer than its sample's window (a message the logger dropped) is skipped."""
     dtg = np.median(np.diff(tg))
     rq = R.from_quat(q[:, [1, 2, 3, 0]])
     i0 = np.searchsorted(tq, tg[0], side="left")
@@ -254,6 +274,8 @@ def interval_errors(tg, w, tq, q, bias):
     gstep = np.diff(tg, prepend=tg[0] - dtg)[k]
     bad = np.zeros(len(ia), bool)
     np.logical_or.at(bad, owner, gstep > 2.5 * dtg)
+    if win is not None:
+        np.logical_or.at(bad, owner, gstep > 1.05 * win[k])
     starts = np.searchsorted(owner, np.arange(len(ia)))
     counts = np.bincount(owner, minlength=len(ia))
     prod = np.tile([0.0, 0.0, 0.0, 1.0], (len(ia), 1))
@@ -265,18 +287,18 @@ def interval_errors(tg, w, tq, q, bias):
     return {"t": tq[ia], "dt": dt, "e": e, "ok": ~bad & (counts > 0)}
 
 
-def _fit(tg, w, tq, q, iters=3):
+def _fit(tg, w, tq, q, iters=3, win=None):
     b = np.zeros(3)
     for _ in range(iters):
-        ie = interval_errors(tg, w, tq, q, b)
+        ie = interval_errors(tg, w, tq, q, b, win)
         ok = ie["ok"]
         b = b - ie["e"][ok].sum(0) / ie["dt"][ok].sum()
-    ie = interval_errors(tg, w, tq, q, b)
+    ie = interval_errors(tg, w, tq, q, b, win)
     return b, ie
 
 
-def constant_bias(tg, w, tq, q):
-    b, ie = _fit(tg, w, tq, q)
+def constant_bias(tg, w, tq, q, win=None):
+    b, ie = _fit(tg, w, tq, q, win=win)
     ok = ie["ok"]
     e, dt, t = ie["e"][ok], ie["dt"][ok], ie["t"][ok]
     blk = np.minimum(((t - t[0]) / (t[-1] - t[0] + 1e-12) * N_BLOCKS).astype(int), N_BLOCKS - 1)
@@ -288,7 +310,7 @@ def constant_bias(tg, w, tq, q):
     for lo, hi in ((-np.inf, tm), (tm, np.inf)):
         mg = (tg > lo - 1.0) & (tg < hi + 1.0)
         mq = (tq >= max(lo, tq[0])) & (tq <= min(hi, tq[-1]))
-        hb, hie = _fit(tg[mg], w[mg], tq[mq], q[mq], iters=2)
+        hb, hie = _fit(tg[mg], w[mg], tq[mq], q[mq], iters=2, win=None if win is None else win[mg])
         hok = hie["ok"]
         ht = hie["t"][hok]
         hblk = np.minimum(((ht - ht[0]) / (ht[-1] - ht[0] + 1e-12) * (N_BLOCKS // 2)).astype(int), N_BLOCKS // 2 - 1)
@@ -356,7 +378,9 @@ def independent(entry):
     out["rate_excitation_ratio"] = cond
     dtg = float(np.median(np.diff(tg)))
     mocap = entry["reader"] == "csv"
-    apply_off = mocap or (abs(off) > 2 * dtg and cc > 0.5)
+    # an attitude stamped with the IMU sample it is of (PX4 ``timestamp_sample``) has no clock offset
+    # to the gyro: the cross-correlation's lag is then its noise (-21 ms on a vibrating log)
+    apply_off = mocap or (abs(off) > 2 * dtg and cc > 0.5 and not d.get("ref_sample_stamped"))
     apply_rot = rot is not None and (mocap or out["frame_rotation_deg"] > 45.0)
     out["applied"] = {"clock_offset": bool(apply_off), "frame_rotation": bool(apply_rot)}
     if apply_off:
@@ -365,7 +389,8 @@ def independent(entry):
         # reference body frame -> gyro frame: q_ref_in_gyro_frame = q_ref * C^-1
         rq = R.from_quat(q[:, [1, 2, 3, 0]]) * rot.inv()
         q = rq.as_quat()[:, [3, 0, 1, 2]]
-    out["independent"] = constant_bias(tg, w, tq, q)
+    out["independent"] = constant_bias(tg, w, tq, q, d.get("win"))
+    out["gyro_windows"] = d.get("win") is not None
     out["still_noise"] = still_noise(tg, w, tq, q, d.get("armed"))
     out["onboard_bias"] = d["onboard"] or None
     out["independent_seconds"] = time.perf_counter() - t0

@@ -59,6 +59,9 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
     - ``onboard_bias`` and ``events``: what a PX4 log says besides (:func:`jaxdrift.io._logs.ulog_context`:
       the flight controller's own gyro-bias estimate, gyro and estimator switches, attitude
       resets); None and [] for other formats;
+    - ``w_unmeasured`` (k, 2): spans [s] where rates logged as means over their own windows (PX4's
+      ``sensor_combined``) have no window (the logger dropped it): bridged on the grid, but an
+      integral across them is not measured (None where the rates are points);
     - ``armed``: when the motors may run (``{"t", "armed"}``, from the same context), or None.
     """
     try:
@@ -115,6 +118,7 @@ def read_attitude_run(path, *, map=None, units=None, fs=None, force=False, check
             "acc_quantisation": _text_rounding(path, run.info, acc_cols),
             "warnings": run.warnings, "info": run.info, "time_base": run.time_base,
             "q_ref_t": q_ref_t, "q_ref_q": q_ref_q, "heading_only": bool(run.info.get("heading_only")),
+            "w_unmeasured": np.column_stack(run.references["unmeasured"]) if "unmeasured" in run.references else None,
             "w_recorded_t": run.references["w"][0] if "w" in run.references else None,
             "w_recorded": run.references["w"][1] if "w" in run.references else None}
 

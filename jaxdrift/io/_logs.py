@@ -34,6 +34,9 @@ ROS_MISSING = ("reading ROS bags (.bag, ROS 2 bag folders, .db3, .mcap) needs th
 ULOG_DEFAULTS = {"wx": "sensor_combined:0.gyro_rad[0]", "wy": "sensor_combined:0.gyro_rad[1]",
                  "wz": "sensor_combined:0.gyro_rad[2]", "qw": "vehicle_attitude:0.q[0]",
                  "qx": "vehicle_attitude:0.q[1]", "qy": "vehicle_attitude:0.q[2]", "qz": "vehicle_attitude:0.q[3]"}
+#: ULog fields that are means over their own integration window (a delta angle divided by its
+#: window, stamped at the window's end), and the field that holds the window [us]
+ULOG_WINDOWS = {"gyro_rad": "gyro_integral_dt"}
 IMU_TYPES = ("sensor_msgs/msg/Imu", "sensor_msgs/Imu")
 _IMU_FIELDS = {"wx": "angular_velocity.x", "wy": "angular_velocity.y", "wz": "angular_velocity.z",
                "qw": "orientation.w", "qx": "orientation.x", "qy": "orientation.y", "qz": "orientation.z"}
@@ -132,13 +135,20 @@ def _clean_times(fname, name, t, vals):
     return t, vals, notes
 
 
+def _window_seconds(d: np.ndarray) -> np.ndarray:
+    """A ULog integration window in seconds: PX4 writes it as a float in seconds (v1.8 and before)
+    or as whole microseconds (later); no window is shorter than a microsecond or longer than a second."""
+    med = float(np.median(d)) if d.size else 0.0
+    return d * 1e-6 if med >= 1.0 else d
+
+
 def _read_ulog(path, want: list[str], optional=()) -> tuple[dict, list[str], dict]:
     fname = _label(path)
     parsed = [parse_channel(w, "ulog") for w in want]
     topics = sorted({p[0] for p in parsed})
     data_list, info, dropouts, formats = _ulog_data(path, topics)
     sets = {(d.name, d.multi_id): d for d in data_list}
-    out, notes = {}, []
+    out, notes, windows = {}, [], {}
     for w, (topic, inst, field) in zip(want, parsed):
         d = sets.get((topic, inst))
         if w in optional and (d is None or field not in d.data):
@@ -163,14 +173,21 @@ def _read_ulog(path, want: list[str], optional=()) -> tuple[dict, list[str], dic
             did = f"; did you mean {hint[0]!r}?" if hint else ""
             raise InputError(f"{fname}: topic {topic}:{inst} has no field {field!r}{did} "
                              f"(fields: {', '.join(fields[:12])}{', ...' if len(fields) > 12 else ''})")
-        t, (v,), nt = _clean_times(fname, f"{topic}:{inst}", _ulog_times(d),
-                                   [np.asarray(d.data[field], dtype=np.float64)])
+        win = ULOG_WINDOWS.get(field.split("[")[0])
+        win = win if win in d.data and "timestamp_sample" not in d.data else None
+        cols = [np.asarray(d.data[field], dtype=np.float64)] + \
+            ([_window_seconds(np.asarray(d.data[win], dtype=np.float64))] if win else [])
+        t, vals, nt = _clean_times(fname, f"{topic}:{inst}", _ulog_times(d), cols)
         notes += [n for n in nt if n not in notes]
-        out[w] = (t, v)
+        out[w] = (t, vals[0])
+        if win and np.all(vals[1] > 0) and np.all(np.isfinite(vals[1])):
+            windows[w] = vals[1]
     meta = {k: info.get(k) for k in ("ver_hw", "sys_name", "ver_sw", "ver_sw_release") if k in info}
     if dropouts:
         meta["dropouts"] = len(dropouts)
         meta["dropout_total_s"] = float(sum(dropouts)) * 1e-3
+    if windows:
+        meta["windows"] = windows  # (taken out by the reader: the time base integrates these)
     return out, notes, meta
 
 

@@ -396,6 +396,7 @@ def load_run(path, kind: str = "vehicle", *, map=None, units=None, fs: float | N
     data = {c: cols.data[file_of[c]] for c in used if file_of[c] in cols.data}
     if cols.times:
         cols.times = {c: cols.times[file_of[c]] for c in used if file_of[c] in cols.times}
+        cols.windows = {c: cols.windows[file_of[c]] for c in used if file_of[c] in cols.windows}
     elif synth_t and "t" not in data:
         data["t"] = np.arange(cols.n) / fs
     cols.empty = {c: cols.empty.get(file_of[c], -1) for c in used}
@@ -488,7 +489,8 @@ def _convert_units(fname, used, factors, cols, file_of, data, notes) -> dict:
                 data[c] = data[c] * f
             converted[c] = f
     if "t" in converted and cols.times:
-        cols = dataclasses.replace(cols, times={c: v * converted["t"] for c, v in cols.times.items()})
+        cols = dataclasses.replace(cols, times={c: v * converted["t"] for c, v in cols.times.items()},
+                                   windows={c: v * converted["t"] for c, v in cols.windows.items()})
     return converted, cols
 
 

@@ -14,11 +14,14 @@ import numpy as np
 
 from ..errors import InputError
 from ._table import Columns, file_label
-from ._timebase import build_time_base
+from ._timebase import METHOD, build_time_base, place_nearest, window_integral
 
 __all__ = ["apply_policy", "REFERENCE_COLUMNS"]
 
 REFERENCE_COLUMNS = ("qw", "qx", "qy", "qz")
+#: windowed rates (means over their own windows) are integrated as such where their windows cover
+#: at least this share of the time; below it they are snapshots, resampled as points
+WINDOW_COVER = 0.8
 #: a logged reference sample whose norm is further than this from 1 is no attitude (left out)
 LOG_QUAT_NORM_TOL = 1e-3
 
@@ -58,6 +61,7 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
     times_of = (lambda c: cols.times[c]) if cols.times else (lambda c: t_raw)
     ref_names = [c for c in REFERENCE_COLUMNS if c in data] if kind == "attitude" else []
     ref_notes: list[str] = []
+    notes_w: list[str] = []
     refs = {"q": _reference(cols, data, times_of, ref_names, ref_notes)} if ref_names else {}
     streams = {c: (times_of(c), v) for c, v in data.items() if c not in ref_names}
     primary = "wx" if kind == "attitude" else "f1"
@@ -69,14 +73,30 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
         if abs(step * fs - 1.0) > 0.01:
             raise InputError(f"{fname}, column t: steps of {step:.9g} s (median), but --fs {fs:g} "
                              f"gives {1.0 / fs:.9g} s")
-    grid, on_grid, placed, tb = build_time_base(streams, primary, fs=fs, references=refs)
+    windows = {c: d for c, d in (cols.windows or {}).items() if c in streams}
+    for c in list(windows):
+        t = streams[c][0]
+        cover = float(np.sum(np.minimum(windows[c][1:], np.diff(t))) / (t[-1] - t[0])) if len(t) > 1 else 0.0
+        if cover < WINDOW_COVER:
+            # windows that leave most of the time unmeasured (a log that keeps one message in 25):
+            # snapshots, resampled as points
+            notes_w.append(f"{fname}: {c}'s logged windows cover {100 * cover:.3g} % of the time; resampled as points")
+            del windows[c]
+    grid, on_grid, placed, tb = build_time_base(streams, primary, fs=fs, references=refs, windows=windows)
     if not tb["segments"]:
         raise InputError(f"{fname}: the channels have no stretch of samples in common "
                          f"({', '.join(streams)}); nothing to analyse")
-    notes = [_describe(fname, tb)] + ref_notes
+    spans = tb.pop("unmeasured_spans", None)
+    if spans is not None:
+        refs["unmeasured"] = (spans[:, 0], spans[:, 1])  # where windowed rates measured nothing
+    notes = [_describe(fname, tb)] + ref_notes + notes_w[:1]
     rates = [streams[c] for c in ("wx", "wy", "wz") if c in streams]
     if kind == "attitude" and len(rates) == 3 and all(np.array_equal(r[0], rates[0][0]) for r in rates):
         refs["w"] = (rates[0][0], np.column_stack([r[1] for r in rates]))  # the rates as recorded
+    if "q" in placed and all(c in windows for c in ("wx", "wy", "wz")):
+        placed["q"], refs["q"], carried = _carry_reference(grid, on_grid, streams, windows, refs["q"], tb["nominal_dt"])
+        notes.append(f"{fname}: the reference's samples carried to their nearest grid rows by the rates' recorded windows "
+                     f"(by at most half a step; {carried} sample(s)), so that it meets the rates' integral where that is exact")
     if "q" in placed:
         for j, c in enumerate(ref_names):
             on_grid[c] = placed["q"][:, j]
@@ -106,6 +126,37 @@ def apply_policy(cols: Columns, data: dict, t_raw: np.ndarray | None, kind: str,
     return grid, on_grid, refs, tb, notes
 
 
+def _carry_reference(grid, on_grid, streams, windows, ref, dt):
+    """The reference moved onto the grid exactly: each sample (stamped where a window of the rates
+    ends, as PX4 stamps its attitude with the IMU sample it used) turned by the rates' integral from
+    its stamp to its nearest grid row, read from the windows (exact at the stamp; within a window at
+    the row, which is where the grid's own rows put it too: the rows' sum between two grid times is
+    that integral). Interpolating a vibrating rate over the sub-step would err by up to half a step
+    of vibration, per sample. Returns (reference on the grid, the reference at the rows' times,
+    how many samples were carried)."""
+    from scipy.spatial.transform import Rotation
+
+    tq, q = ref
+    valid = np.ones(len(grid), bool)
+    for v in on_grid.values():
+        valid &= np.isfinite(v)
+    k = np.rint((tq - grid[0]) / dt).astype(np.int64)
+    ok = (k >= 0) & (k < len(grid))
+    ok[ok] &= (np.abs(grid[k[ok]] - tq[ok]) <= 0.5 * dt * (1 + 1e-9)) & valid[k[ok]]
+    tq, q, k = tq[ok], q[ok], k[ok]
+    order = np.lexsort((np.abs(grid[k] - tq), k))  # per row the nearest sample (a reference faster than the grid)
+    first = order[np.r_[True, k[order][1:] != k[order][:-1]]]
+    tq, q, k = tq[first], q[first], k[first]
+    dtheta = np.column_stack([window_integral(streams[c][0], streams[c][1], windows[c], tq, dt)
+                              - window_integral(streams[c][0], streams[c][1], windows[c], grid[k], dt)
+                              for c in ("wx", "wy", "wz")])
+    # q(row) = q(stamp) (x) exp(-dtheta): the body turned by dtheta from the row to the stamp
+    q2 = (Rotation.from_quat(q[:, [1, 2, 3, 0]]) * Rotation.from_rotvec(-dtheta)).as_quat()[:, [3, 0, 1, 2]]
+    q2 *= np.where(np.sum(q2 * q, 1) < 0, -1.0, 1.0)[:, None]  # the recorded sign
+    t2 = grid[k]
+    return place_nearest(grid, valid, t2, q2, dt), (t2, q2), int(np.sum(np.any(dtheta != 0, 1)))
+
+
 def _describe(fname: str, tb: dict) -> str:
     gaps = tb["gaps"]
     gap_txt = (f"; {len(gaps)} gap(s) longer than {tb['gap_factor']:g} steps (longest "
@@ -116,6 +167,11 @@ def _describe(fname: str, tb: dict) -> str:
     br_txt = ("; dropped samples bridged by the interpolation (at most "
               f"{tb['bridge_samples']} in a row): " + ", ".join(f"{c} {b['missing_samples']} at {b['steps']} place(s)"
                                                              for c, b in br.items())) if br else ""
+    win = tb.get("windows")
+    how = f"by {tb['method']} interpolation" if not win else (
+        f"by their integral over the windows they were logged as ({', '.join(win['channels'])}: means over "
+        f"each sample's own window; {win['unmeasured_spans']} missing window(s), {win['unmeasured_s']:.3g} s, "
+        "bridged but never compared across)" + ("" if tb["method"] == "window integral" else f", the rest by {METHOD} interpolation"))
     return (f"{fname}: time base {tb['fs']:.6g} Hz from the median step; jitter {100 * tb['jitter_std_rel']:.3g} % "
             f"(std), {100 * tb['jitter_max_rel']:.3g} % (max){gap_txt}{br_txt}; channels resampled onto the uniform "
-            f"grid by {tb['method']} interpolation{filt}")
+            f"grid {how}{filt}")

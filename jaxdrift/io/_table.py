@@ -55,6 +55,9 @@ class Columns:
     #: then holds that channel's samples as recorded (the time-base policy makes the grid)
     times: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
     meta: dict = dataclasses.field(default_factory=dict)  # what a logger file says about itself
+    #: channels that are means over their own integration windows (PX4 ``sensor_combined`` rates):
+    #: each sample's window [s], ending at its time
+    windows: dict[str, np.ndarray] = dataclasses.field(default_factory=dict)
 
     @property
     def n(self) -> int:
@@ -436,9 +439,10 @@ def read_columns(path, want: list[str], *, fmt: str | None = None, fs: float | N
         from ._logs import read_log
 
         series, notes, meta = read_log(path, [w for w in want if w != time_col], optional=optional)
+        windows = meta.pop("windows", {})
         return Columns(str(path), fmt, list(series), {c: v for c, (_, v) in series.items()},
                        {c: -1 for c in series}, 0, {c: 0.0 for c in series}, notes,
-                       times={c: t for c, (t, _) in series.items()}, meta=meta)
+                       times={c: t for c, (t, _) in series.items()}, meta=meta, windows=windows)
     if fmt == "mf4":
         return _read_mf4(path, want, fs, time_col, resample)
     return _read_csv(path, want)

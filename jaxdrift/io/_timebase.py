@@ -22,6 +22,15 @@ policy (docs/measured-data.md, "Time base"):
 5. **Segments of the run**: the grid rows where every channel has a value, in runs of consecutive
    rows; a run shorter than 2 rows is dropped (and reported). The grid starts at the first row of
    the first segment and ends with the last row of the last one.
+5a. **Windowed channels** (a rate that is the mean over its own integration window, PX4's
+   ``sensor_combined.gyro_rad`` with ``gyro_integral_dt``: a delta angle divided by its window)
+   are carried onto the grid by their integral, not by their points: the running integral of the
+   windows (exact at each window's end) is read at the grid's times and each row holds the mean
+   rate over the step after it (:func:`resample_windows`). Under vibration, where the rate
+   changes sign from one sample to the next, interpolating points loses the integral a sample at a
+   time; this keeps it to within one window at any time. Where windows are missing (the logger
+   dropped messages) the rate is bridged as above, and the spans are returned as **unmeasured**: a
+   comparison of integrals must not cross them.
 6. **References** (an attitude run's quaternion) are not resampled: their samples are returned at
    their own times; for callers that read them per grid row they are also placed on the grid row
    nearest each sample (within half a step, inside a segment), NaN elsewhere.
@@ -37,7 +46,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["GAP_FACTOR", "BRIDGE_SAMPLES", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
-           "sample_segments", "resample", "place_nearest", "row_segments", "true_runs", "longest_run", "build_time_base",
+           "sample_segments", "resample", "resample_windows", "window_integral", "place_nearest", "row_segments", "true_runs", "longest_run", "build_time_base",
            "uniform_time_base", "segment_arrays", "run_block"]
 
 #: a step longer than GAP_FACTOR x the nominal step is a gap (a sample or more is missing)
@@ -51,6 +60,9 @@ FILTER_RATIO = 1.05
 FILTER_ORDER = 4
 #: cut-off of the anti-alias filter, as a fraction of the grid's Nyquist frequency
 FILTER_CUTOFF = 0.8
+#: a windowed channel's sample whose window starts more than this share of the nominal window
+#: after the previous one ended leaves the time between them unmeasured
+HOLE_TOL = 0.05
 
 
 def step_stats(t: np.ndarray) -> dict:
@@ -172,6 +184,74 @@ def value_step(v: np.ndarray) -> float:
     return q if np.mean(np.abs(r - np.rint(r)) < 1e-3) >= 0.99 else 0.0
 
 
+def _window_starts(t: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Each window's start: ``t - d``, never before the previous window's end (a window longer than
+    its step overlaps the one before: the overlap is counted once)."""
+    starts = t - d
+    starts[1:] = np.maximum(starts[1:], t[:-1])
+    return starts
+
+
+def _window_knots(t, v, d, dt):
+    """The running integral of a windowed channel as a piecewise-linear function: (knot times,
+    values, window starts, holes before each window, gap flags). Exact at every window's end;
+    linear across a missing window (the mean of its neighbours' rates) and flat across a gap."""
+    st = step_stats(t)
+    starts = _window_starts(t, d)
+    hole = np.r_[0.0, starts[1:] - t[:-1]]
+    gap = np.zeros(len(t), bool)
+    gap[st["gap_steps"] + 1] = True  # window i starts after a gap
+    bridge = np.r_[0.0, 0.5 * (v[1:] + v[:-1]) * hole[1:]]
+    bridge[gap] = 0.0
+    theta_end = np.cumsum(bridge + v * (t - starts))
+    theta_start = theta_end - v * (t - starts)
+    own = hole > 0
+    own[0] = True
+    kt = np.concatenate([starts[own], t])
+    kv = np.concatenate([theta_start[own], theta_end])
+    order = np.argsort(kt, kind="stable")
+    # past the last window by at most a step, its own rate holds
+    kt = np.r_[kt[order], t[-1] + dt]
+    kv = np.r_[kv[order], theta_end[-1] + v[-1] * dt]
+    return kt, kv, starts, hole, gap, st
+
+
+def window_integral(t, v, d, x, dt):
+    """The running integral of a windowed channel (``v[i]`` the mean over ``[t[i] - d[i], t[i]]``)
+    at times ``x``, from its first window's start: exact at window ends (see :func:`resample_windows`)."""
+    kt, kv = _window_knots(np.asarray(t, np.float64), np.asarray(v, np.float64), np.asarray(d, np.float64), dt)[:2]
+    return np.interp(x, kt, kv)
+
+
+def resample_windows(t: np.ndarray, v: np.ndarray, d: np.ndarray, grid: np.ndarray, dt: float):
+    """A windowed channel onto ``grid``: ``v[i]`` the mean over ``[t[i] - d[i], t[i]]`` (``d`` the
+    window durations). Each grid row gets the mean over ``[grid, grid + dt]`` of the channel's
+    running integral (piecewise linear: exact at every window end; bridged linearly across missing
+    windows and NaN across gaps, as :func:`resample`), so that the rows' sum between two grid times
+    is the integral between them.
+
+    Returns (values on the grid, fractions ``a``: the share of each row's step after the window its
+    start falls in, stats of ``t``, filtered (always False: the step mean is the filter), unmeasured
+    spans ``(k, 2)`` [s] where windows are missing)."""
+    t = np.asarray(t, np.float64)
+    v = np.asarray(v, np.float64)
+    d = np.asarray(d, np.float64)
+    kt, kv, starts, hole, gap, st = _window_knots(t, v, d, dt)
+    out = (np.interp(grid + dt, kt, kv) - np.interp(grid, kt, kv)) / dt
+    # rows whose step is not inside one segment's windows are NaN (the last segment's last row
+    # reaches past its last window by less than a step)
+    cover0 = np.r_[starts[0], starts[gap]]
+    cover1 = np.r_[t[:-1][gap[1:]], t[-1] + dt]
+    s0 = np.clip(np.searchsorted(cover0, grid, side="right") - 1, 0, len(cover0) - 1)
+    bad = (grid < cover0[s0]) | (grid + dt > cover1[s0] + 1e-9 * dt)
+    out[bad] = np.nan
+    j = np.clip(np.searchsorted(t, grid, side="left"), 0, len(t) - 1)  # the window a row starts in
+    frac = np.clip((grid + dt - t[j]) / dt, 0.0, 1.0)[~bad]
+    unmeasured = (hole > HOLE_TOL * float(np.median(d))) & ~gap
+    spans = np.column_stack([t[:-1][unmeasured[1:]], starts[unmeasured]]) if unmeasured.any() else np.zeros((0, 2))
+    return out, frac, st, False, spans
+
+
 def _bridged(streams: dict, stats: dict) -> dict:
     """What was bridged, per channel: the count of steps, the samples they miss, the longest, and
     the first few (a log that drops a sample now and then drops hundreds)."""
@@ -188,13 +268,16 @@ def _bridged(streams: dict, stats: dict) -> dict:
 
 
 def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
-                    references: dict | None = None) -> tuple[np.ndarray, dict, dict, dict]:
+                    references: dict | None = None, windows: dict | None = None) -> tuple[np.ndarray, dict, dict, dict]:
     """The policy for channels on their own times: ``streams`` {name: (t, v)} (v (n,)),
     ``primary`` the channel whose nominal step makes the grid (unless ``fs``), ``references``
-    {name: (t, v (m, k))} kept on their own times.
+    {name: (t, v (m, k))} kept on their own times, ``windows`` {name: durations (n,)} of the
+    channels that are means over their own windows (:func:`resample_windows`).
 
     Returns (grid t, {name: values on the grid, NaN in gaps}, {name: reference on the grid's
-    nearest rows}, time_base dict)."""
+    nearest rows}, time_base dict). The time base's ``windows`` block (where any) names those
+    channels and counts their unmeasured spans; ``unmeasured_spans`` ((k, 2) array, not in the
+    report) holds them."""
     t_p = streams[primary][0]
     st_p = step_stats(t_p)
     dt = 1.0 / fs if fs else st_p["nominal_dt"]
@@ -204,9 +287,13 @@ def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
     grid = t0 + np.arange(n) * dt
     grid = grid[grid <= t1]
     n = len(grid)
-    data, stats, fracs, filtered = {}, {}, [], []
+    data, stats, fracs, filtered, holes = {}, {}, [], [], {}
+    windows = windows or {}
     for name, (t, v) in streams.items():
-        data[name], frac, stats[name], f = resample(t, v, grid, fs_grid=1.0 / dt)
+        if name in windows:
+            data[name], frac, stats[name], f, holes[name] = resample_windows(t, v, windows[name], grid, dt)
+        else:
+            data[name], frac, stats[name], f = resample(t, v, grid, fs_grid=1.0 / dt)
         if name == primary:
             fracs = frac
         if f:
@@ -238,6 +325,14 @@ def build_time_base(streams: dict, primary: str, *, fs: float | None = None,
                        for name, s in stats.items()}}
     if fs:
         tb["primary_fs"] = st_p["fs"]
+    if holes:
+        spans = np.unique(np.concatenate(list(holes.values())), axis=0)
+        spans = spans[(spans[:, 1] > grid[0]) & (spans[:, 0] < grid[-1])] if len(grid) else spans[:0]
+        tb["method"] = "window integral" if set(holes) == set(streams) else METHOD + " (window integral where windowed)"
+        tb["windows"] = {"channels": sorted(holes), "unmeasured_spans": int(len(spans)),
+                         "unmeasured_s": float(np.sum(spans[:, 1] - spans[:, 0])) if len(spans) else 0.0,
+                         "first": [{"t_start": float(a), "t_end": float(b)} for a, b in spans[:10]]}
+        tb["unmeasured_spans"] = spans
     return grid, data, refs, tb
 
 
@@ -271,5 +366,5 @@ def run_block(tb: dict | None) -> dict | None:
         return None
     keys = ("fs", "nominal_dt", "jitter_std_rel", "jitter_max_rel", "gap_factor", "gaps", "bridge_samples",
             "bridged", "logger_faults", "sound_part_s", "segments",
-            "analysed_segment", "resampled", "method", "filtered", "noise_variance_factor")
+            "analysed_segment", "resampled", "method", "filtered", "noise_variance_factor", "windows")
     return {k: tb[k] for k in keys if k in tb}

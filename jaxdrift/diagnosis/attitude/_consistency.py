@@ -405,13 +405,16 @@ def thinned(run, anchors, use, valid, var_rate):
     return thin, use_t & valid_t[:, None], valid_t, [note]
 
 
-def anchor_rows(ref_rows):
+def anchor_rows(ref_rows, windowed=False):
     """Anchor rows: at most 3000 intervals of at least :data:`MIN_INTERVAL_ROWS` rows.
 
     Over a few steps the interpolated step rates share samples, so the interval errors are neither
     independent nor of variance N^2 dt_i (chi2/dof 0.6 for single steps), and the scale's
     errors-in-variables correction no longer holds; from about 10 rows on both do (measured).
+    Rates integrated from their own windows (``windowed``) have no interpolation to share: the
+    integral between two reference rows is exact there, and every reference row is an anchor
+    (within the 3000).
     """
-    step = max(MIN_INTERVAL_ROWS, int(math.ceil((ref_rows[-1] - ref_rows[0]) / 3000.0)))
+    step = max(MIN_INTERVAL_ROWS if not windowed else 1, int(math.ceil((ref_rows[-1] - ref_rows[0]) / 3000.0)))
     grid = np.arange(ref_rows[0], ref_rows[-1], step)
     return np.unique(np.concatenate([ref_rows[np.searchsorted(ref_rows, grid)], ref_rows[-1:]]))

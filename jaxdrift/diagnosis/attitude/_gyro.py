@@ -272,7 +272,8 @@ def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     The integration's error (the step rates' interpolation, the coning of a rate that turns within a
     step) grows at least as dt^2, so the change of the estimates from dt to 2 dt is at least three times
     the error left at dt (Richardson): ``|theta(2 dt) - theta(dt)| / 3`` is the method part of their
-    intervals.
+    intervals. Rates that are step means (``run["w_unmeasured"]`` set: windows integrated onto the
+    grid) are averaged in pairs instead.
     """
     a0 = int(anchors[0])
     anc = anchors[(anchors - a0) % 2 == 0]
@@ -281,7 +282,15 @@ def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     first_int = np.searchsorted(anchors, anc[:-1], side="right") - 1
     segs = [np.unique(sg[first_int], return_inverse=True)[1] for sg in seg_of_interval_per_channel]
     par = a0 % 2
-    run2 = {"w": run["w"][par::2], "dt": 2.0 * run["dt"], "q_ref": run["q_ref"][par::2]}
+    w2 = run["w"][par::2]
+    if run.get("w_unmeasured") is not None:
+        # rates that are means over their steps (windows integrated onto the grid): the same method at
+        # 2 dt is the mean over two steps, not every other step's (which would read a vibration's
+        # aliasing as the integration's error)
+        w2 = w2.copy()
+        m = len(run["w"][par + 1 :: 2])
+        w2[:m] = 0.5 * (w2[:m] + run["w"][par + 1 :: 2])
+    run2 = {"w": w2, "dt": 2.0 * run["dt"], "q_ref": run["q_ref"][par::2]}
     use2 = None
     if use is not None:  # a half-rate interval spans whole intervals of the full fit: all of them must be used
         last_int = np.searchsorted(anchors, anc[1:], side="right") - 2

@@ -46,6 +46,7 @@ from ._realworld import (
     degenerate,
     finite_segments,
     gap_mask,
+    restarts,
     heading_error,
     heading_only_cells,
     inconsistent_findings,
@@ -201,7 +202,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
     notes, observed, not_observed = [], [], []
     findings = []
     ref_rows = np.nonzero(np.isfinite(q_ref[:, 0]))[0]
-    anchors = anchor_rows(ref_rows)
+    anchors = anchor_rows(ref_rows, windowed=run.get("w_unmeasured") is not None)
     # where the reference cannot be compared with the gyro: gaps, and an inconsistent reference
     valid = gap_mask(run, anchors)
     use, ref_spans, still_int = consistency(w, dt, q_ref, anchors, t, valid)
@@ -291,7 +292,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
         if held:
             fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, hold_bias=_bias_idx(fit0, held))
-    observed.append(f"reference attitude on {n_ref} rows ({n_int} intervals used)")
+    observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
     if M >= 4:
         drift, drift_notes = _drift_tests(dt, fit0, anchors, int_seg, M, use)
         notes += drift_notes
@@ -521,17 +522,7 @@ def _reference_attitude_error(run, segments, ref_spans, model, n_ref, ref_rows, 
     t, dt, w, q_ref = run["t"], run["dt"], run["w"], run["q_ref"]
     w_corr = gyro_inverse(w, model.scale, model.bias_path)
     e_before, e_after, rows = [], [], []
-    # restart at each gap and after each short span where the reference is inconsistent (a reset
-    # would otherwise stay in the error for the rest of the run); rows inside such a span are not
-    # compared. A span over a quarter of the run stays in (nothing would be left to compare).
-    inside = np.zeros(len(t), bool)
-    cuts = []
-    for sp in ref_spans:
-        if sp["t1"] - sp["t0"] > 0.25 * (t[-1] - t[0]):
-            continue
-        a, b = np.searchsorted(t, sp["t0"]), np.searchsorted(t, sp["t1"], side="right")
-        inside[a + 1 : b] = True
-        cuts.append(b)
+    inside, cuts = restarts(run, ref_spans)
     pieces = []
     for i0, i1 in segments:
         edges = sorted({i0, i1, *[c for c in cuts if i0 < c < i1]})
@@ -567,7 +558,8 @@ def _reference_attitude_error(run, segments, ref_spans, model, n_ref, ref_rows, 
         "drift_off_time_s": float(t[ok[off[0]]] - t[a0]) if len(off) else None,
         "threshold_rad": float(thr), "unit": "rad",
         "what": "angle of the rotation between the gyro-integrated attitude (from the first reference row of each "
-                "segment between gaps and after each span where the reference is inconsistent) and the reference",
+                "segment between gaps, after each span where the reference is inconsistent and after each window "
+                "missing from rates logged as window means) and the reference",
     }}
     gain = {"metric": "attitude_error_rms", "before": sim_err["attitude"]["rms"], "after": float(np.sqrt(np.mean(e_after**2))), "unit": "rad"}
     plots = {"attitude": (t[ok], e_before, e_after)}

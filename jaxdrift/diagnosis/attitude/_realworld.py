@@ -30,7 +30,7 @@ from .._diffnoise import diff_variance, first_plateau
 from ._noise import (BLOCK_MIN_BLOCKS, block_white_noise, estimate_white_noise, recorded_rates, to_grid,
                      white_noise_recorded)
 
-__all__ = ["noise_kind_step", "degenerate", "gap_mask", "residual_noise_scale",
+__all__ = ["noise_kind_step", "degenerate", "gap_mask", "restarts", "residual_noise_scale",
            "inconsistent_findings", "residual_noise_bound", "NOISE_BOUND_MIN", "finite_segments", "split_spikes", "heading_only_cells", "vertical_axis",
            "heading_error", "STILL_MIN_S"]
 
@@ -332,7 +332,8 @@ def finite_segments(run):
 
 def gap_mask(run, anchors):
     """Per anchor interval: False where it holds a gap (rows outside the time base's segments, or
-    rates that are not finite): nothing was measured there to compare with the reference."""
+    rates that are not finite) or a missing window of rates logged as window means
+    (``run["w_unmeasured"]``): nothing was measured there to compare with the reference."""
     n = len(run["t"])
     bad_rows = ~np.isfinite(run["w"]).all(1)
     segs = (run.get("time_base") or {}).get("segments")
@@ -345,7 +346,36 @@ def gap_mask(run, anchors):
         ok &= seg_id[anchors[:-1]] == seg_id[anchors[1:] - 1]
     cum = np.r_[0, np.cumsum(bad_rows)]
     ok &= (cum[anchors[1:]] - cum[anchors[:-1]]) == 0
+    holes = run.get("w_unmeasured")
+    if holes is not None and len(holes):
+        # rates logged as window means with windows missing (bridged on the grid): the integral
+        # across a missing window is a guess, under vibration a poor one
+        t = run["t"]
+        i0 = np.searchsorted(holes[:, 1], t[anchors[:-1]], side="right")  # first hole ending after the start
+        ok &= ~((i0 < len(holes)) & (holes[np.minimum(i0, len(holes) - 1), 0] < t[anchors[1:]]))
     return ok
+
+
+def restarts(run, ref_spans):
+    """Where the attitude error restarts on the reference: (rows not compared, rows a piece starts
+    at). After each short span where the reference is inconsistent (a reset would otherwise stay in
+    the error for the rest of the run; rows inside it are not compared; a span over a quarter of the
+    run stays in: nothing would be left to compare), and after each window missing from rates logged
+    as window means (``run["w_unmeasured"]``: its rotation is not measured, and under vibration
+    its bridge errs by millirad, a random walk that would swamp what a correction changes)."""
+    t = run["t"]
+    inside = np.zeros(len(t), bool)
+    cuts = []
+    for sp in ref_spans:
+        if sp["t1"] - sp["t0"] > 0.25 * (t[-1] - t[0]):
+            continue
+        a, b = np.searchsorted(t, sp["t0"]), np.searchsorted(t, sp["t1"], side="right")
+        inside[a + 1 : b] = True
+        cuts.append(int(b))
+    holes = run.get("w_unmeasured")
+    if holes is not None and len(holes):
+        cuts += [int(b) for b in np.unique(np.searchsorted(t, holes[:, 1], side="left"))]
+    return inside, cuts
 
 
 def inconsistent_findings(spans, use, duration=None):

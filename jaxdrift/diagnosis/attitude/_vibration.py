@@ -201,5 +201,11 @@ def vibration_step(run, noise):
     note = (f"vibration: {', '.join(CHANNELS)} levels {', '.join(fmt(v) for v in level)} rad/s per sample "
             f"over {fmt(vib_rows * dt)} s; the gyro noise is "
             + ("measured on its quiet spans" if finding["estimate_kind"] == "estimate" else "an upper bound"))
+    if run.get("w_unmeasured") is not None:
+        # rates logged as means over their own windows are carried onto the grid by their integral,
+        # exact at every window's end (:func:`jaxdrift.io._timebase.resample_windows`): the vibration
+        # is motion the reference sees too, not an error of the scale's regressor; only the white
+        # noise of the quiet spans (or its bound) is
+        noise = replace(noise, sigma_axis=sig_q if n_quiet >= QUIET_MIN_ROWS else np.full(3, quiet_level))
     return (replace(noise, var_rate=var_rate, finding=finding),
             Vibration(spans=spans, level=level, peaks=peaks, rows=vib_rows, finding=f_entry), Said(notes=(note,)))
