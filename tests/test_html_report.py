@@ -271,3 +271,48 @@ def test_page_of_a_60s_1khz_run_size_and_open_time(browser, vehicle, tmp_path):
 
         warnings.warn(f"page of a 60 s, 1 kHz run: {size / 1e6:.2f} MB, {secs:.2f} s (aim: < 5 MB, < 2 s)",
                       UserWarning, stacklevel=1)
+
+
+# ---------------------------------------------------------------- the band a finding was judged in
+
+
+@pytest.fixture(scope="module")
+def banded(tmp_path_factory):
+    """A run whose pitch carries 1e-5 rad of white sensor noise: its enforced moment is compared
+    below a few Hz (``_problem.choose_bands``); over the full band the noise, differentiated twice,
+    is all a figure would show (#46 item 3)."""
+    from jaxdrift.cli import main
+    from jaxdrift.studies import _rungen as rg
+
+    d = tmp_path_factory.mktemp("banded")
+    effects = [{"cause": "force_offset", "channel": "f1", "value": 60.0}, {"cause": "force_noise", "value": 20.0}]
+    cols, _ = rg.make_run(effects, duration=30.0, fs=500.0, speed=15.0, road_class="B", seed=11, channels=("beta",))
+    cols["beta"] = cols["beta"] + 1e-5 * np.random.default_rng(0).standard_normal(len(cols["t"]))
+    run = d / "run.csv"
+    with open(run, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(list(cols))
+        w.writerows(zip(*[[f"{v:.10g}" for v in cols[k]] for k in cols]))
+    assert main(["-q", "diagnose", str(run), "--json", str(d / "report.json"), "--html", str(d / "report.html")]) == 0
+    return d
+
+
+def test_residual_figures_plot_the_band_the_finding_was_judged_in(browser, banded):
+    rep = json.loads((banded / "report.json").read_text())
+    g = rep["gain"]
+    assert g["metric"] == "enforced_moment_rms" and g["band_hz"][1] < 20.0
+    tr = rep["series_preview"]["traces"]
+    before, after = tr["residual_moment_model"], tr["residual_moment_extended"]
+    # what is drawn is what was compared: its RMS is the gain's, before and after
+    assert before["band_hz"] == g["band_hz"] and after["band_hz"] == g["band_hz"]
+    assert before["rms"] == pytest.approx(g["before"], rel=1e-6) and after["rms"] == pytest.approx(g["after"], rel=1e-6)
+    # the full band holds the sensor noise, differentiated twice: far larger than what was compared
+    full = rep["simulation_error"]["enforced_moment"]["rms"]
+    assert full > 10 * g["before"]
+    assert max(abs(v) for v in before["y"]) < 0.2 * full
+    # the zoom: the stretch where the residual was largest, every sample
+    zb = tr["residual_moment_model_zoom"]
+    assert zb["rms"] >= before["rms"] and len(zb["t"]) == int(round(2.0 * 500))
+    _, text = _open(browser, banded / "report.html")
+    assert f"below {g['band_hz'][1]:.4g} Hz".replace(".0 Hz", " Hz") in text or "the band it was compared in" in text
+    assert "worst stretch" in text

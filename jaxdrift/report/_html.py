@@ -294,6 +294,7 @@ _COLOURS = {"measured": F.MEAS_C, "model": F.MODEL_C, "extended": F.EXT_C, "corr
 
 
 def _colour(name: str, k: int):
+    name = name.removesuffix("_zoom")  # a zoom's traces keep their colours
     for suffix, c in _COLOURS.items():
         if name.endswith(suffix):
             return c
@@ -323,14 +324,28 @@ def vehicle_page(r: dict, title: str) -> str:
     t0, mk = _t0(r), F.report_markers(r)
 
     def residual_for(f):
-        ch = (f.get("residual") or {}).get("channel")
+        res = f.get("residual") or {}
+        ch = res.get("channel")
         p = group_panel(r, f"residual_{ch}") if ch else None
         if not p:
             return ""
-        unit = (f.get("residual") or {}).get("unit", "")
-        return fig(F.time_figure([(f"{ch} residual [{unit}]", p[1])], mk, f"{ch} residual before and after the extended model", t0=t0, height=2.3),
-                   f"The residual of the {ch} channel with the model as given (red) and extended (blue): "
-                   f"RMS {num((f.get('residual') or {}).get('rms_without'))} → {num((f.get('residual') or {}).get('rms_with'))} {unit}.")
+        unit = res.get("unit", "")
+        trs = {k: v for k, v in _traces(r).items() if v.get("group") == f"residual_{ch}"}
+        b = next(iter(trs.values())).get("band_hz")
+        band = f" below {num(b[1])} Hz (the band it was compared in)" if b else ""
+        plotted = " → ".join(num(trs[k].get("rms")) for k in (f"residual_{ch}_model", f"residual_{ch}_extended")
+                             if k in trs and trs[k].get("rms") is not None)
+        panels = [(f"{ch} residual [{unit}]", p[1])]
+        z = group_panel(r, f"residual_{ch}_zoom")
+        zoom = ""
+        if z:
+            zoom = fig(F.time_figure([(f"{ch} residual [{unit}]", z[1])], (), f"{ch} residual: its worst stretch", t0=t0, height=2.0),
+                       "The stretch where the residual with the model as given was largest, every sample drawn.")
+        return fig(F.time_figure(panels, mk, f"{ch} residual{band} before and after the extended model", t0=t0, height=2.3),
+                   f"The residual of the {ch} channel{band} with the model as given (red) and extended (blue), "
+                   f"its envelope over the run (the least and largest sample of each bin): RMS of what is drawn "
+                   f"{plotted or '–'} {unit}; the finding's own share of it: {num(res.get('rms_without'))} → "
+                   f"{num(res.get('rms_with'))} {unit}.") + zoom
 
     n = len(findings)
     conf = sum(1 for f in findings if f.get("confirmed"))

@@ -16,6 +16,8 @@ plain subsampling would lose. Values are rounded to 6 significant digits.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..io._timebase import longest_run
@@ -105,8 +107,15 @@ def vehicle_preview(run, model: dict, report: dict, bins: int = BINS) -> dict:
             traces[f"{ch}_corrected"] = _trace(t, cols[f"{ch}_corrected"], "N", f"{ch} corrected", ch, bins)
     ext = report.get("extended_model") or {}
     corr = Corrections.from_json(ext.get("corrections"))
-    # the forces as the diagnosis compared them (a clipped channel's bursts restored)
+    # the forces as the diagnosis compared them (a clipped channel's bursts restored), each residual
+    # channel in the band it was compared in (sensor noise on the motion: ``_problem.choose_bands``)
     pipe = ResidualPipeline(run.with_channels(corr.restore(run.t, {ch: run[ch] for ch in ("f1", "f2")})))
+    bands = compared_bands(report, pipe.h)
+    if bands:
+        import scipy.signal
+
+        pipe = pipe.with_band({nm: (fc, scipy.signal.butter(8, fc, fs=1.0 / pipe.h, output="sos"))
+                               for nm, fc in bands.items()})
     r0 = pipe.residuals(model, NO_CORRECTION).channels
     r1 = pipe.residuals(ext.get("parameters", model), corr).channels
     units = {"moment": "N m", "heave": "N"}
@@ -116,13 +125,62 @@ def vehicle_preview(run, model: dict, report: dict, bins: int = BINS) -> dict:
             continue
         x0 = np.asarray(x0, float)
         x1 = np.asarray(r1[nm], float)
-        m = min(x0.size, x1.size, t.size - offset.get(nm, 0))
-        tt = t[offset.get(nm, 0):offset.get(nm, 0) + m]
+        # the rows the diagnosis kept: a band-limited channel's first 1.5 / fc s carry its filter's
+        # start (``_problem._Problem``), and the last ``trim`` samples are room for delays
+        off = offset.get(nm, 0)
+        m = min(x0.size, x1.size, t.size - off, pipe.n - pipe.trim - off)
+        skip = min(int(math.ceil(1.5 / (bands[nm] * pipe.h))), m // 4) if nm in bands else 0
+        x0, x1, tt = x0[skip:m], x1[skip:m], t[off + skip:off + m]
         unit = units.get(nm, "N")
-        traces[f"residual_{nm}_model"] = _trace(tt, x0[:m], unit, f"{nm} residual, model as given", f"residual_{nm}", bins)
-        traces[f"residual_{nm}_extended"] = _trace(tt, x1[:m], unit, f"{nm} residual, extended model", f"residual_{nm}", bins)
+        band = [0.0, bands[nm]] if nm in bands else None
+        where = f" below {band[1]:.3g} Hz" if nm in bands else ""
+        traces.update(_residual_traces(nm, tt, x0, x1, unit, where, band if nm in bands else None, bins))
     tb = (report.get("run") or {}).get("time_base")
     return _block(traces, _time_markers(tb, t), None, bins)
+
+
+def compared_bands(report: dict, h: float) -> dict:
+    """``{residual channel: cutoff Hz}`` of the channels the diagnosis compared low-passed, read
+    from the report (each finding's ``residual.band_hz``, the gain's ``band_hz``); a band reaching
+    the Nyquist frequency of the step ``h`` is the full band, left out."""
+    out = {}
+    items = [(f.get("residual") or {}) for f in report.get("findings") or [] if isinstance(f, dict)]
+    g = report.get("gain") or {}
+    main = {"enforced_moment_rms": "moment", "vertical_enforced_force_rms": "heave"}.get(g.get("metric"))
+    if main and g.get("band_hz"):
+        items.append({"channel": main, "band_hz": g["band_hz"]})
+    for r in items:
+        b = r.get("band_hz")
+        if r.get("channel") and isinstance(b, (list, tuple)) and len(b) == 2 and 0 < float(b[1]) < 0.5 / h * (1 - 1e-9):
+            out[r["channel"]] = float(b[1])
+    return out
+
+
+#: the zoom on a residual's worst stretch: this long [s], or this share of the run where shorter
+ZOOM_S, ZOOM_SHARE = 2.0, 0.1
+
+
+def _residual_traces(nm, t, x0, x1, unit, where, band, bins) -> dict:
+    """A residual channel before and after the extension: the whole run (its envelope, min/max per
+    bin) and a zoom at full resolution on the stretch where it was largest before (``ZOOM_S``).
+    Each trace records the band it was compared in (``band_hz``, None: the full band) and the RMS of
+    what it plots (undecimated)."""
+    rms = lambda x: float(np.sqrt(np.mean(np.square(x)))) if len(x) else 0.0  # noqa: E731
+    out = {}
+    for key, x, what in (("model", x0, "model as given"), ("extended", x1, "extended model")):
+        tr = _trace(t, x, unit, f"{nm} residual{where}, {what}", f"residual_{nm}", bins)
+        out[f"residual_{nm}_{key}"] = {**tr, "band_hz": band, "rms": rms(x)}
+    n = len(t)
+    if n > 10:
+        dt = float((t[-1] - t[0]) / (n - 1))
+        w = max(2, min(int(round(ZOOM_S / dt)), int(ZOOM_SHARE * n)))
+        c = np.concatenate([[0.0], np.cumsum(np.square(x0))])
+        i = int(np.argmax(c[w:] - c[:-w]))
+        for key, x, what in (("model", x0, "model as given"), ("extended", x1, "extended model")):
+            tr = _trace(t[i:i + w], x[i:i + w], unit, f"{nm} residual{where}, {what} (worst stretch)",
+                        f"residual_{nm}_zoom", bins)
+            out[f"residual_{nm}_{key}_zoom"] = {**tr, "band_hz": band, "rms": rms(x[i:i + w])}
+    return out
 
 
 # ----------------------------------------------------------------------------- attitude
