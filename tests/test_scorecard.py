@@ -45,3 +45,20 @@ def test_extra_confirmed_is_a_systematic_finding_matching_no_hidden_effect():
     assert s["right"] and s["confirmed"]
     assert [e.split("=")[0] for e in s["extra_confirmed"]] == ["parameter_error:k3"]  # the unconfirmed delay is no claim
     assert s["coverage"] == {"force_offset": True, "force_noise/estimate": True}
+
+
+def test_a_constant_bias_at_the_level_a_walk_held_is_no_extra_claim():
+    walk = {"cause": "gyro_bias_drift", "channel": "wx", "value": 6.7e-4, "visibility": 4.0,
+            "realised": {"mean": -9.0e-3, "std": 1.0e-3}}
+    named = {"cause": "gyro_bias", "channel": "wx", "estimate": -9.3e-3, "interval": [-12.2e-3, -6.5e-3]}
+    s = sc.score_run("attitude", {"truth": [walk], "findings": [named]})
+    assert s["extra_confirmed"] == []
+    # a level the walk never held (beyond its interval and twice the walk's spread) is a claim
+    off = dict(named, estimate=9.3e-3, interval=[6.5e-3, 12.2e-3])
+    assert sc.score_run("attitude", {"truth": [walk], "findings": [off]})["extra_confirmed"]
+    # and a walk whose level is not recorded (an older truth) leaves the rule as it was
+    plain = {k: v for k, v in walk.items() if k != "realised"}
+    assert sc.score_run("attitude", {"truth": [plain], "findings": [named]})["extra_confirmed"]
+    # where the walk is in sight, it is still asked for
+    seen = dict(walk, visibility=40.0)
+    assert not sc.score_run("attitude", {"truth": [seen], "findings": [named]}).get("right")
