@@ -26,7 +26,7 @@ def _rates(t):
                             0.2 * np.sin(2 * np.pi * 0.04 * t) + 0.05 * np.sin(2 * np.pi * 2.1 * t + 1.0)])
 
 
-def _diagnose(seed, bias=(0.0, 0.0, 0.0), sigma_ref=1.5e-3, offset_s=0.0, converge_deg=0.0):
+def _diagnose(seed, bias=(0.0, 0.0, 0.0), sigma_ref=1.5e-3, offset_s=0.0, converge_deg=0.0, tau_s=10.0):
     rng = np.random.default_rng(seed)
     dt = 1.0 / FS
     t = np.arange(0.0, T, dt)
@@ -41,7 +41,7 @@ def _diagnose(seed, bias=(0.0, 0.0, 0.0), sigma_ref=1.5e-3, offset_s=0.0, conver
     err = sigma_ref * rng.standard_normal((len(rows), 3))
     if converge_deg:
         d = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
-        err += np.outer(np.exp(-t[rows] / 10.0), d) * math.radians(converge_deg)
+        err += np.outer(np.exp(-t[rows] / tau_s), d) * math.radians(converge_deg)
     x = (r * Rotation.from_rotvec(err)).as_quat()
     q_ref = np.full((len(t), 4), np.nan)
     q_ref[rows] = x[:, [3, 0, 1, 2]]
@@ -77,3 +77,22 @@ def test_a_clock_offset_under_a_noisy_reference_is_found_and_reads_as_no_scale()
 def test_an_estimator_converging_is_not_weighed_and_names_no_bias():
     rep = _diagnose(5103, sigma_ref=5e-4, converge_deg=5.0)
     assert not _by(rep, "gyro_bias") and not _by(rep, "gyro_scale") and not _by(rep, "gyro_bias_drift"), rep["findings"]
+
+
+def test_a_slowly_converging_estimator_is_fitted_beside_the_bias(monkeypatch):
+    """An estimator 4 deg off whose error decays with a 30 s time constant over a 90 s run: no
+    stretch can be left out (a third of the run in, its rate still exceeds the bias), so the decay is
+    fitted beside the gyro's effects (``_gyro.decay_profile``): the wy bias is found inside its
+    interval and nothing else is named. Without the decay the bias is lost under the fading error."""
+    from jaxdrift.diagnosis.attitude import _gyro
+
+    kw = dict(bias=(0.0, -5e-4, 0.0), sigma_ref=3e-4, converge_deg=4.0, tau_s=30.0)
+    rep = _diagnose(5104, **kw)
+    b = _by(rep, "gyro_bias")
+    assert set(b) == {"wy"} and b["wy"]["interval"][0] <= -5e-4 <= b["wy"]["interval"][1], rep["findings"]
+    assert not _by(rep, "gyro_scale") and not _by(rep, "gyro_bias_drift"), rep["findings"]
+    note = next(n for n in rep["observability"]["notes"] if "converges like an estimator" in n)
+    assert " deg off " in note
+    monkeypatch.setattr(_gyro, "DECAY_CHI2", math.inf)
+    rep = _diagnose(5104, **kw)
+    assert "wy" not in _by(rep, "gyro_bias"), rep["findings"]  # measured: the bias is lost under the decay

@@ -91,8 +91,25 @@ def _whiten(white, X):
     return out
 
 
+def decay_regressor(run, anchors, tau, frame, after=0.0):
+    """(n_int, 3, 3): how a reference error ``v exp(-(t - t0) / tau)`` (``t0`` the first anchor, or
+    ``after`` seconds later with no error before; in the ``"global"`` frame or the ``"body"``'s)
+    enters each interval's discrepancy, per component of ``v``."""
+    t, q_ref = run["t"], run["q_ref"]
+    starts, ends = anchors[:-1], anchors[1:]
+    t0 = t[anchors[0]] + after
+
+    def e(x):
+        return np.where(x >= t0, np.exp(-np.maximum(x - t0, 0.0) / tau), 0.0)
+
+    ea, eb = e(t[starts]), e(t[ends])
+    if frame == "body":
+        return rotation_matrix_np(q_ref[starts]) * ea[:, None, None] - rotation_matrix_np(q_ref[ends]) * eb[:, None, None]
+    return (ea - eb)[:, None, None] * np.eye(3)
+
+
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
-                  use=None, hold_scale=(), hold_bias=(), ref_var=0.0):
+                  use=None, hold_scale=(), hold_bias=(), ref_var=0.0, decay=None):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
 
     ``ref_var``: the reference's own attitude noise variance per row and axis [rad^2]; where it is
@@ -101,6 +118,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
 
     ``hold_scale``: channels whose scale is held at 1, ``hold_bias``: parameter indices of biases held
     at 0 (what the run does not determine, so that the rest is judged on its own).
+
+    ``decay``: ``(tau, frame)``, an estimator converging: the reference's error ``v exp(-(t - t0) / tau)``
+    (``t0`` the first anchor; in the ``"global"`` frame or the ``"body"``'s) with its 3 amplitudes ``v``
+    as nuisance parameters (the last three).
 
     ``use``: optional (n_int, 3) bool, the (interval, global axis) cells that enter the fit (the others
     get weight 0: a reference inconsistent there, :mod:`._consistency`, or an interval across a gap).
@@ -130,7 +151,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     # with the reference's noise weighed (GLS), a clock offset tau left between it and the gyro is a
     # nuisance parameter too: its error over an interval, R_b w_b tau - R_a w_a tau, telescopes like
     # the noise but follows the motion, and unfitted it would be read as a scale
-    p = sc + 4 + (ref_var > 0)
+    has_tau, i_dec = ref_var > 0, sc + 4 + (ref_var > 0)
+    p = i_dec + 3 * (decay is not None)
     theta = np.zeros(p)
     theta[sc : sc + 3] = 1.0
     theta[sc + 3] = 0.5
@@ -150,7 +172,9 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         for a, (u, _, dinv) in enumerate(white):
             prec[u, a] = dinv
         w_int = prec.mean(1)
-    if p > sc + 4:  # the offset's regressor: the reference's attitudes and the gyro at the anchors only
+    if decay is not None:  # the converging error's regressor: its change over each interval
+        J_dec = decay_regressor(run, anchors, *decay)
+    if has_tau:  # the offset's regressor: the reference's attitudes and the gyro at the anchors only
         Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
         J_tau = Rw[1:] - Rw[:-1]
     for it in range(max_iter):
@@ -174,8 +198,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         qb = q_ref[ends]
         err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
         e = quat_log_np(err_q)  # (n_int, 3) global frame
-        if p > sc + 4:
+        if has_tau:
             e = e + J_tau * theta[sc + 4]
+        if decay is not None:
+            e = e + np.einsum("nab,b->na", J_dec, theta[i_dec:i_dec + 3])
         # attitude of each row, anchored on its interval's reference
         anc = anchors[int_of_row]
         G = quat_multiply_np(quat_multiply_np(q_ref[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
@@ -188,8 +214,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
             J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
             J[:, :, sc + c] = -RS[:, :, c] / s[c]
         J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
-        if p > sc + 4:
+        if has_tau:
             J[:, :, sc + 4] = J_tau
+        if decay is not None:
+            J[:, :, i_dec:i_dec + 3] = J_dec
         Jf = (J if white is None else _whiten(white, J)).reshape(-1, p)
         ef = (e if white is None else _whiten(white, e)).reshape(-1)
         H = Jf.T @ (Wf[:, None] * Jf)
@@ -232,6 +260,9 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
         "e": e, "res": res.reshape(-1, 3), "res_rad": e + np.einsum("nkp,p->nk", J, step), "dt_int": dt_int,
         "lam": float(theta[sc + 3]), "weak_scale": weak, "scores": scores, "H": H, "use": use, "ref_var": ref_var,
+        "Jf": Jf, "Wf": Wf, "white": white,
+        "decay": None if decay is None else {"tau_s": float(decay[0]), "frame": decay[1], "index": int(i_dec),
+                                             "amplitude_rad": [float(x) for x in theta[i_dec:i_dec + 3]]},
     }
 
 
@@ -265,7 +296,7 @@ def reference_noise_var(fit) -> float:
 
 
 def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), use=None,
-                  hold_scale=(), hold_bias=(), ref_var=0.0):
+                  hold_scale=(), hold_bias=(), ref_var=0.0, decay=None):
     """:func:`reference_fit` on every other row (step 2 dt) between the anchors of the same parity as
     the first one (each interval keeps its segment), or None where fewer than two intervals remain.
 
@@ -290,13 +321,13 @@ def half_rate_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         w2 = w2.copy()
         m = len(run["w"][par + 1 :: 2])
         w2[:m] = 0.5 * (w2[:m] + run["w"][par + 1 :: 2])
-    run2 = {"w": w2, "dt": 2.0 * run["dt"], "q_ref": run["q_ref"][par::2]}
+    run2 = {"w": w2, "dt": 2.0 * run["dt"], "q_ref": run["q_ref"][par::2], "t": run["t"][par::2]}
     use2 = None
     if use is not None:  # a half-rate interval spans whole intervals of the full fit: all of them must be used
         last_int = np.searchsorted(anchors, anc[1:], side="right") - 2
         use2 = np.stack([use[a : b + 1].all(0) for a, b in zip(first_int, last_int)])
     return reference_fit(run2, noise_var, segs, (anc - par) // 2, sample_var, use=use2, hold_scale=hold_scale,
-                         hold_bias=hold_bias, ref_var=ref_var)
+                         hold_bias=hold_bias, ref_var=ref_var, decay=decay)
 
 
 def cluster_cov(fit, cluster_of_interval):
@@ -464,3 +495,84 @@ def gls_agrees(fit_w, fit_g, z=GLS_AGREE_Z) -> bool:
     se = np.sqrt(np.maximum(np.diag(V)[idx], 0.0)) * math.sqrt(max(1.0, fit_w["chi2"] / fit_w["dof"]) if G < 3 else 1.0)
     ok = se > 0
     return bool(np.all(d[ok] <= z * se[ok]))
+
+
+#: a converging estimator is fitted beside the gyro's effects where its decay, profiled over
+#: ``DECAY_TAUS`` time constants (from three intervals to half the run) in both frames, gains this
+#: chi-square (in units of the fit's own residual level: 28 tries of 3 amplitudes each) and starts at
+#: least this far off [rad] (estimators start degrees off; a gyro's drift does not decay from the start);
+#: and it must fit better than a constant turn of the reference's frame (a body-frame error that never
+#: decays, which a slow decay can stand in for) by ``DECAY_VS_FRAME`` in the same units
+DECAY_CHI2 = 30.0
+DECAY_MIN_RAD = math.radians(1.0)
+#: ... and at most this far (an estimator seen converging from tens of degrees is no estimator
+#: settling but a reference gone wrong, which the consistency check judges: on a PX4 bench log the
+#: profile read 61 deg)
+DECAY_MAX_RAD = math.radians(15.0)
+DECAY_VS_FRAME = 10.0
+#: the same decay started at these shares of the run must gain at most 1 / DECAY_START_RATIO of it
+DECAY_LATER = (0.1, 0.2, 0.3, 0.4)
+DECAY_START_RATIO = 2.0
+DECAY_TAUS = 14
+
+
+def decay_profile(fit_ref, fit0, run, anchors, *args, **kw):
+    """The reference as an estimator still converging: ``(tau, frame)`` of the decay
+    ``v exp(-(t - t0) / tau)`` of its error that :func:`reference_fit` (``decay=``) fits best beside
+    the gyro's effects, where it gains :data:`DECAY_CHI2` over ``fit0`` (the same fit without it),
+    ``|v|`` is between :data:`DECAY_MIN_RAD` and :data:`DECAY_MAX_RAD`, it fits better than a constant turn of the reference's
+    frame (:data:`DECAY_VS_FRAME`) and it prefers the run's start (:data:`DECAY_START_RATIO`); else
+    None. ``fit_ref(run, *args, **kw)`` is the fit. Returns (decay or None, the fit with it or None).
+
+    An onboard estimator starts degrees off and its error decays over seconds to a minute; read as
+    the gyro's, that decay is a bias that fades: a wandering bias (a drift named where there is
+    none) and the constant bias lost under it. The converging check of :mod:`._consistency` leaves
+    out its first stretch where it decays fast; a slow one (a time constant of a third of the run
+    and more) outlasts any stretch that can be left out, so it is modelled instead."""
+    t = run["t"]
+    T = float(t[anchors[-1]] - t[anchors[0]])
+    n_int = len(anchors) - 1
+    if n_int < 20 or T <= 0:
+        return None, None
+    # the profile, linearised at ``fit0`` (its Jacobian beside the decay's regressor), picks the decay;
+    # the full fit with it then decides
+    sw = np.sqrt(fit0["Wf"])
+    A0 = fit0["Jf"] * sw[:, None]
+    r = fit0["res"].reshape(-1) * sw
+
+    def rss(tau, frame, after=0.0):
+        Jd = decay_regressor(run, anchors, tau, frame, after)
+        Jd = (Jd if fit0["white"] is None else _whiten(fit0["white"], Jd)).reshape(-1, 3) * sw[:, None]
+        A = np.hstack([A0, Jd])
+        return float(np.sum((r - A @ np.linalg.lstsq(A, r, rcond=1e-12)[0]) ** 2))
+
+    best = min((rss(float(tau), frame), (float(tau), frame)) for frame in ("global", "body")
+               for tau in np.geomspace(max(1.0, 3.0 * T / n_int), T / 2.0, DECAY_TAUS))
+    # a reference turned by a constant rotation (a frame the alignment left) is a body-frame error that
+    # never decays: a slow decay would stand in for it. The decay must beat that as well
+    frame_rss = rss(math.inf, "body")
+    vs_frame = (frame_rss - best[0]) / max(best[0] / max(len(r) - A0.shape[1] - 3, 1), 1e-300)
+    decay = best[1]
+    # only an estimator prefers the start: a bias that wanders shows decays as large anywhere in the
+    # run, so the same decay started later must gain at most half as much
+    rss0 = float(r @ r)
+    later = min(rss(*decay, after=f * T) for f in DECAY_LATER)
+    prefers_start = rss0 - best[0] >= DECAY_START_RATIO * (rss0 - later)
+    if vs_frame < DECAY_VS_FRAME or not prefers_start:
+        return None, None
+    f = fit_ref(run, *args, decay=decay, **kw)
+    # in units of the residual level left with the decay (the weights' noise level may be off either way)
+    gain = (fit0["chi2"] - f["chi2"]) / max(f["chi2"] / max(f["dof"] - 3, 1), 1e-300)
+    if gain < DECAY_CHI2 or not DECAY_MIN_RAD <= np.linalg.norm(f["decay"]["amplitude_rad"]) <= DECAY_MAX_RAD:
+        return None, None
+    return decay, f
+
+
+def without_decay(run, decay: dict, a0: int):
+    """The reference quaternions (n, 4) with a fitted converging error (``reference_fit``'s
+    ``decay`` record, ``a0`` its first anchor row) taken out: the fit's amplitudes ``v`` are minus the
+    error's, so the true attitude is ``q exp(v e(t))`` (body frame) or ``exp(v e(t)) q`` (global)."""
+    q = run["q_ref"]
+    e = np.exp(-np.maximum(run["t"] - run["t"][a0], 0.0) / decay["tau_s"])
+    d = quat_exp_np(np.outer(e, decay["amplitude_rad"]))
+    return quat_multiply_np(q, d) if decay["frame"] == "body" else quat_multiply_np(d, q)

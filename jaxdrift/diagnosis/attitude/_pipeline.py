@@ -68,9 +68,8 @@ from ._common import (
     Z_SIGNIFICANT,
     fmt,
 )
-from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reference_noise_var, reml_drift, rw_cov,
-                    gls_agrees, gyro_halves, test_se,
-                    static_segment)
+from ._gyro import (cluster_cov, convention_terms, decay_profile, half_rate_fit, reference_fit, reference_noise_var,
+                    reml_drift, rw_cov, gls_agrees, gyro_halves, test_se, static_segment, without_decay)
 from ._noise import allan, estimate_white_noise, white_noise_recorded
 from ._alignment import alignment_step, clock_settled
 from ._vibration import vibration_step
@@ -292,6 +291,15 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
         if held:
             fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, hold_bias=_bias_idx(fit0, held))
+    # an estimator converging slowly (:func:`._gyro.decay_profile`): its decay fitted beside the gyro's effects
+    hb = {"hold_bias": _bias_idx(fit0, held)} if held else {}
+    decay, fit_d = decay_profile(fit_ref, fit0, run, anchors, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
+                                 hold_scale=hold, **hb)
+    if decay:
+        fit_ref, fit0 = partial(fit_ref, decay=decay), fit_d
+        notes.append(f"the reference converges like an estimator starting {fmt(math.degrees(np.linalg.norm(fit0['decay']['amplitude_rad'])))} "
+                     f"deg off (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame): the "
+                     "decay is fitted beside the gyro's effects")
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
     if M >= 4:
         drift, drift_notes = _drift_tests(dt, fit0, anchors, int_seg, M, use)
@@ -305,7 +313,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
         fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
                             hold_bias=_bias_idx(fit, held))
     fit["half_rate"] = half_rate_fit(run, var_rate, seg_final, anchors, sample_var, use=use,
-                                     hold_scale=hold, ref_var=ref_var)
+                                     hold_scale=hold, ref_var=ref_var, decay=decay)
     infl = max(1.0, fit["chi2"] / fit["dof"])
     fit["halves"] = gyro_halves(fit_ref, use, run, var_rate, seg_final, anchors, sample_var, hold_scale=hold) \
         if ref_var > 0 and n_int >= 40 else {}
@@ -319,7 +327,8 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
     if infl > 1.5:
         said = said + Said(notes=(f"reference residuals are {fmt(math.sqrt(infl))} times the gyro noise: intervals "
                                   "widened by that factor",))
-    comp = _reference_attitude_error(run, noise.segments, ref_spans, model, n_ref, ref_rows, fit["lam"])
+    run_e = run if not decay else {**run, "q_ref": without_decay(run, fit["decay"], anchors[0])}
+    comp = _reference_attitude_error(run_e, noise.segments, ref_spans, model, n_ref, ref_rows, fit["lam"])
     said = Said(tuple(notes), tuple(observed), tuple(not_observed)) + said + comp.said
     noise = replace(noise, var_rate=var_rate)
     if noise.finding is None and not (noise.wn or {}).get("plateau", True):  # never white: the reference bounds it
