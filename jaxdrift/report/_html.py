@@ -19,6 +19,7 @@ import math
 import os
 
 from . import _figures as F
+from ._panels import NO_SERIES, series_t0, series_traces, group_panel
 
 __all__ = ["render", "report_kind", "finding_label"]
 
@@ -277,51 +278,13 @@ def rest_html(report: dict, known: set) -> str:
     return generic(rest) if rest else ""
 
 
-# ------------------------------------------------------------------------------ preview helpers
-
-
-def _traces(report: dict) -> dict:
-    return ((report.get("series_preview") or {}).get("traces")) or {}
-
-
-def _t0(report: dict) -> float:
-    ts = [tr["t"][0] for tr in _traces(report).values() if tr.get("t")]
-    return min(ts) if ts else 0.0
-
-
-_COLOURS = {"measured": F.MEAS_C, "model": F.MODEL_C, "extended": F.EXT_C, "corrected": F.EXT_C,
-            "gyro": F.MEAS_C, "reference": F.REF_C, "before": F.MODEL_C, "after": F.EXT_C}
-
-
-def _colour(name: str, k: int):
-    name = name.removesuffix("_zoom")  # a zoom's traces keep their colours
-    for suffix, c in _COLOURS.items():
-        if name.endswith(suffix):
-            return c
-    return f"C{k % 10}"
-
-
-def group_panel(report: dict, group: str, ylabel: str | None = None):
-    tr = {k: v for k, v in _traces(report).items() if v.get("group") == group}
-    if not tr:
-        return None
-    unit = next(iter(tr.values())).get("unit", "")
-    lw = {"measured": 1.1, "gyro": 0.8}
-    return (ylabel or f"{group} [{unit}]",
-            [(v, _colour(k, j), next((w for s, w in lw.items() if k.endswith(s)), 0.8)) for j, (k, v) in enumerate(tr.items())])
-
-
-NO_SERIES = ("<p class=muted>This report has no <span class=mono>series_preview</span> block, so no time series "
-             "can be drawn (reports written with <span class=mono>--html</span> carry one).</p>")
-
-
 # ----------------------------------------------------------------------------------- vehicle
 
 
 def vehicle_page(r: dict, title: str) -> str:
     run = r.get("run") or {}
     findings = [f for f in r.get("findings") or [] if isinstance(f, dict)]
-    t0, mk = _t0(r), F.report_markers(r)
+    t0, mk = series_t0(r), F.report_markers(r)
 
     def residual_for(f):
         res = f.get("residual") or {}
@@ -330,7 +293,7 @@ def vehicle_page(r: dict, title: str) -> str:
         if not p:
             return ""
         unit = res.get("unit", "")
-        trs = {k: v for k, v in _traces(r).items() if v.get("group") == f"residual_{ch}"}
+        trs = {k: v for k, v in series_traces(r).items() if v.get("group") == f"residual_{ch}"}
         b = next(iter(trs.values())).get("band_hz")
         band = f" below {num(b[1])} Hz (the band it was compared in)" if b else ""
         plotted = " → ".join(num(trs[k].get("rms")) for k in (f"residual_{ch}_model", f"residual_{ch}_extended")
@@ -393,7 +356,7 @@ def vehicle_page(r: dict, title: str) -> str:
 def attitude_page(r: dict, title: str) -> str:
     run = r.get("run") or {}
     findings = [f for f in r.get("findings") or [] if isinstance(f, dict)]
-    t0, mk = _t0(r), F.report_markers(r)
+    t0, mk = series_t0(r), F.report_markers(r)
     n = len(findings)
     verdict = (f"<div class=verdict><p><b>{n} finding{'s' * (n != 1)}</b>, ranked by their test statistic "
                "(white noise last).</p>" + findings_table(findings) + gain_html(r.get("gain")) + "</div>")
@@ -507,7 +470,7 @@ def durability_page(s: dict, title: str) -> str:
                                      f"damage / {ref} damage [1]", "Damage ratio per section force")))
     panels = [p for p in (group_panel(s, "f3", "section force f3 [N]"), group_panel(s, "f4", "section force f4 [N]")) if p]
     if panels:
-        figs.append(fig(F.time_figure(panels, (), "Section forces of the variants", t0=_t0(s), height=2.6)))
+        figs.append(fig(F.time_figure(panels, (), "Section forces of the variants", t0=series_t0(s), height=2.6)))
     else:
         figs.append(NO_SERIES)
     prov = s.get("provenance") or {}

@@ -108,6 +108,12 @@ def decay_regressor(run, anchors, tau, frame, after=0.0):
     return (ea - eb)[:, None, None] * np.eye(3)
 
 
+def _decay_record(decay, theta, i):
+    """A fitted converging error: its time constant, frame, first parameter index and amplitudes [rad]."""
+    return None if decay is None else {"tau_s": float(decay[0]), "frame": decay[1], "index": int(i),
+                                       "amplitude_rad": [float(x) for x in theta[i:i + 3]]}
+
+
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
                   use=None, hold_scale=(), hold_bias=(), ref_var=0.0, decay=None):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
@@ -119,9 +125,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     ``hold_scale``: channels whose scale is held at 1, ``hold_bias``: parameter indices of biases held
     at 0 (what the run does not determine, so that the rest is judged on its own).
 
-    ``decay``: ``(tau, frame)``, an estimator converging: the reference's error ``v exp(-(t - t0) / tau)``
-    (``t0`` the first anchor; in the ``"global"`` frame or the ``"body"``'s) with its 3 amplitudes ``v``
-    as nuisance parameters (the last three).
+    ``decay``: ``(tau, frame)``, an estimator's converging error (:func:`decay_regressor`), its three
+    amplitudes the last parameters.
 
     ``use``: optional (n_int, 3) bool, the (interval, global axis) cells that enter the fit (the others
     get weight 0: a reference inconsistent there, :mod:`._consistency`, or an interval across a gap).
@@ -172,11 +177,12 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         for a, (u, _, dinv) in enumerate(white):
             prec[u, a] = dinv
         w_int = prec.mean(1)
-    if decay is not None:  # the converging error's regressor: its change over each interval
-        J_dec = decay_regressor(run, anchors, *decay)
+    nuisance = []  # (first index, regressor (n_int, 3, k)) of the parameters linear in e
     if has_tau:  # the offset's regressor: the reference's attitudes and the gyro at the anchors only
         Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
-        J_tau = Rw[1:] - Rw[:-1]
+        nuisance.append((sc + 4, (Rw[1:] - Rw[:-1])[:, :, None]))
+    if decay is not None:  # the converging error's regressor: its change over each interval
+        nuisance.append((i_dec, decay_regressor(run, anchors, *decay)))
     for it in range(max_iter):
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
@@ -198,10 +204,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         qb = q_ref[ends]
         err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
         e = quat_log_np(err_q)  # (n_int, 3) global frame
-        if has_tau:
-            e = e + J_tau * theta[sc + 4]
-        if decay is not None:
-            e = e + np.einsum("nab,b->na", J_dec, theta[i_dec:i_dec + 3])
+        for i, X in nuisance:
+            e = e + np.einsum("nab,b->na", X, theta[i:i + X.shape[2]])
         # attitude of each row, anchored on its interval's reference
         anc = anchors[int_of_row]
         G = quat_multiply_np(quat_multiply_np(q_ref[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
@@ -214,10 +218,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
             J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
             J[:, :, sc + c] = -RS[:, :, c] / s[c]
         J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
-        if has_tau:
-            J[:, :, sc + 4] = J_tau
-        if decay is not None:
-            J[:, :, i_dec:i_dec + 3] = J_dec
+        for i, X in nuisance:
+            J[:, :, i:i + X.shape[2]] = X
         Jf = (J if white is None else _whiten(white, J)).reshape(-1, p)
         ef = (e if white is None else _whiten(white, e)).reshape(-1)
         H = Jf.T @ (Wf[:, None] * Jf)
@@ -257,13 +259,10 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     # cluster-robust covariance of :func:`cluster_cov`
     scores = np.einsum("nkp,nk->np", Jf.reshape(n_int, 3, p), (Wf * res).reshape(n_int, 3))
     return {
-        "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg,
+        "theta": theta, "cov": cov, "chi2": chi2, "dof": dof, "offs": offs, "nseg": nseg, "Jf": Jf, "Wf": Wf,
         "e": e, "res": res.reshape(-1, 3), "res_rad": e + np.einsum("nkp,p->nk", J, step), "dt_int": dt_int,
         "lam": float(theta[sc + 3]), "weak_scale": weak, "scores": scores, "H": H, "use": use, "ref_var": ref_var,
-        "Jf": Jf, "Wf": Wf, "white": white,
-        "decay": None if decay is None else {"tau_s": float(decay[0]), "frame": decay[1], "index": int(i_dec),
-                                             "amplitude_rad": [float(x) for x in theta[i_dec:i_dec + 3]]},
-    }
+        "white": white, "decay": _decay_record(decay, theta, i_dec)}
 
 
 def reference_noise_var(fit) -> float:
