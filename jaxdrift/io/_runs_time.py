@@ -14,7 +14,7 @@ import numpy as np
 
 from ..errors import InputError
 from ._table import Columns, file_label
-from ._timebase import METHOD, build_time_base, place_nearest, window_integral
+from ._timebase import METHOD, build_time_base, nearest_rows, place_nearest, window_integral
 
 __all__ = ["apply_policy", "REFERENCE_COLUMNS"]
 
@@ -140,16 +140,12 @@ def _carry_reference(grid, on_grid, streams, windows, ref, dt):
     valid = np.ones(len(grid), bool)
     for v in on_grid.values():
         valid &= np.isfinite(v)
-    k = np.rint((tq - grid[0]) / dt).astype(np.int64)
-    ok = (k >= 0) & (k < len(grid))
-    ok[ok] &= (np.abs(grid[k[ok]] - tq[ok]) <= 0.5 * dt * (1 + 1e-9)) & valid[k[ok]]
-    tq, q, k = tq[ok], q[ok], k[ok]
-    order = np.lexsort((np.abs(grid[k] - tq), k))  # per row the nearest sample (a reference faster than the grid)
-    first = order[np.r_[True, k[order][1:] != k[order][:-1]]]
-    tq, q, k = tq[first], q[first], k[first]
-    dtheta = np.column_stack([window_integral(streams[c][0], streams[c][1], windows[c], tq, dt)
-                              - window_integral(streams[c][0], streams[c][1], windows[c], grid[k], dt)
-                              for c in ("wx", "wy", "wz")])
+    i, k = nearest_rows(grid, valid, tq, dt)
+    tq, q = tq[i], q[i]
+    # the integral at the stamps and at their rows, from one build of each channel's knots
+    both = np.column_stack([window_integral(streams[c][0], streams[c][1], windows[c], np.r_[tq, grid[k]], dt)
+                            for c in ("wx", "wy", "wz")])
+    dtheta = both[:len(tq)] - both[len(tq):]
     # q(row) = q(stamp) (x) exp(-dtheta): the body turned by dtheta from the row to the stamp
     q2 = (Rotation.from_quat(q[:, [1, 2, 3, 0]]) * Rotation.from_rotvec(-dtheta)).as_quat()[:, [3, 0, 1, 2]]
     q2 *= np.where(np.sum(q2 * q, 1) < 0, -1.0, 1.0)[:, None]  # the recorded sign

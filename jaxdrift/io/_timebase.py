@@ -46,7 +46,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["GAP_FACTOR", "BRIDGE_SAMPLES", "METHOD", "FILTER_RATIO", "FILTER_ORDER", "FILTER_CUTOFF", "step_stats",
-           "sample_segments", "resample", "resample_windows", "window_integral", "place_nearest", "row_segments", "true_runs", "longest_run", "build_time_base",
+           "sample_segments", "resample", "resample_windows", "window_integral", "nearest_rows", "place_nearest", "row_segments", "true_runs", "longest_run", "build_time_base",
            "uniform_time_base", "segment_arrays", "run_block"]
 
 #: a step longer than GAP_FACTOR x the nominal step is a gap (a sample or more is missing)
@@ -138,23 +138,29 @@ def row_segments(valid: np.ndarray) -> tuple[list[tuple[int, int]], list[tuple[i
     return [r for r in runs if r[1] - r[0] >= 2], [r for r in runs if r[1] - r[0] < 2]
 
 
+def nearest_rows(grid: np.ndarray, valid: np.ndarray, t_ref: np.ndarray, dt: float) -> np.ndarray:
+    """Indices into ``t_ref`` of the samples that own a grid row, and the rows: each sample goes to
+    the row nearest it (within half a step, on a valid row); where two samples share a row the
+    nearer one keeps it. Returns (sample indices, rows)."""
+    k = np.rint((t_ref - grid[0]) / dt).astype(np.int64) if len(t_ref) else np.zeros(0, np.int64)
+    idx = np.nonzero((k >= 0) & (k < len(grid)))[0]
+    k = k[idx]
+    dist = np.abs(grid[k] - t_ref[idx])
+    ok = (dist <= 0.5 * dt * (1 + 1e-9)) & valid[k]
+    idx, k, dist = idx[ok], k[ok], dist[ok]
+    order = np.lexsort((dist, k))  # per row, the nearest sample first
+    idx, k = idx[order], k[order]
+    first = np.concatenate([[True], k[1:] != k[:-1]])
+    return idx[first], k[first]
+
+
 def place_nearest(grid: np.ndarray, valid: np.ndarray, t_ref: np.ndarray, v_ref: np.ndarray,
                   dt: float) -> np.ndarray:
-    """Reference samples on the grid row nearest each (within half a step, on a valid row; where
-    two samples share a row the nearer one), NaN elsewhere. ``v_ref`` is (m, k)."""
+    """Reference samples on the grid row nearest each (:func:`nearest_rows`), NaN elsewhere.
+    ``v_ref`` is (m, k)."""
     out = np.full((len(grid), v_ref.shape[1]), np.nan)
-    if len(t_ref) == 0:
-        return out
-    k = np.rint((t_ref - grid[0]) / dt).astype(np.int64)
-    ok = (k >= 0) & (k < len(grid))
-    k, tr, vr = k[ok], t_ref[ok], v_ref[ok]
-    dist = np.abs(grid[k] - tr)
-    ok = (dist <= 0.5 * dt * (1 + 1e-9)) & valid[k]
-    k, dist, vr = k[ok], dist[ok], vr[ok]
-    order = np.lexsort((dist, k))  # per row, the nearest sample first
-    k, vr = k[order], vr[order]
-    first = np.concatenate([[True], k[1:] != k[:-1]])
-    out[k[first]] = vr[first]
+    idx, k = nearest_rows(grid, valid, t_ref, dt)
+    out[k] = v_ref[idx]
     return out
 
 
