@@ -34,10 +34,12 @@ CAMPAIGN_CHANNELS = ("beta", "beta_z3", "beta_s", "beta_z3_s", "beta_rate", "all
 
 def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0),
                   rates=(200, 250, 300, 400, 500), effect_free: float = 0.3, params=None,
-                  motion_noise_share: float = 0.3) -> dict:
+                  motion_noise_share: float = 0.3, nonlinear: int = 0, road_classes=None) -> dict:
     """The campaign's design: the vehicle, its shared errors, the loggers and the runs' cases.
     ``params``: the parameters with shared errors (default: ``n_shared`` drawn from ``PARAMS``);
-    ``motion_noise_share``: the probability that a run's motion channels carry sensor noise."""
+    ``motion_noise_share``: the probability that a run's motion channels carry sensor noise;
+    ``nonlinear``: how many shared nonlinear suspension causes the vehicle has (0-2, one per axle;
+    :func:`draw_nonlinear`); ``road_classes``: the classes the runs' roads are drawn from."""
     rng = np.random.default_rng(seed)
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     nominal = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
@@ -63,7 +65,7 @@ def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0)
     rng.shuffle(owner)
     cases = []
     for i in range(n):
-        cls = str(rng.choice(list(gv.ISO_GD0)))
+        cls = str(rng.choice(list(road_classes or gv.ISO_GD0)))
         chan = str(rng.choice(CAMPAIGN_CHANNELS))
         effects = [dict(e) for e in shared]
         if owner[i]["effect"] is not None:
@@ -86,8 +88,68 @@ def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0)
             "road_seed": int(rng.integers(2**31)), "noise_seed": int(rng.integers(2**31)),
             "logger": owner[i]["id"], "repetitions": int(rng.integers(1, 6)),
         })
-    return {"schema": "independent.campaign/1", "seed": seed, "vehicle_kind": vkind, "model": nominal,
-            "shared": shared, "loggers": loggers, "cases": cases}
+    design = {"schema": "independent.campaign/1", "seed": seed, "vehicle_kind": vkind, "model": nominal,
+              "shared": shared, "loggers": loggers, "cases": cases}
+    if nonlinear:
+        draw_nonlinear(design, nonlinear, np.random.default_rng([seed, 7]))
+    return design
+
+
+#: the shared nonlinear causes a campaign's vehicle may have (one per axle)
+NONLINEAR = [("bump_stop", "k3"), ("bump_stop", "k4"), ("damper_asymmetry", "d3"), ("damper_asymmetry", "d4"),
+             ("progressive_spring", "k3"), ("progressive_spring", "k4")]
+
+
+def _linear_travel(case: dict) -> list:
+    """Each axle's spring travel from its static value in the run's linear pre-run (the true
+    vehicle with the shared parameter errors, on the run's road)."""
+    p = gv.true_vehicle(case)
+    v, T = case["speed"], case["duration"]
+    x0 = -v * case["lead_in"]
+    road = gv.FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.1) + 1.0,
+                           interp=case.get("road_interp", "spline7"))
+    tau = np.arange(int(round(T * case["fs"])) + 1) / case["fs"]
+    sig = gv.signals(p, road, v, x0, gv.simulate(p, road, v, x0, T + 1e-9), tau)
+    L, g = p["a"] + p["b"], p["g"]
+    s0 = (p["m3"] * g * p["a"] / L / p["k3"], p["m3"] * g * p["b"] / L / p["k4"])
+    return [sig["s1"] - s0[0], sig["s2"] - s0[1]]
+
+
+def draw_nonlinear(design: dict, n: int, rng) -> list[dict]:
+    """Give the campaign's vehicle ``n`` nonlinear suspension causes (on different axles), the same
+    law in every run: a bump stop at a fixed travel (set so that about 40 % of the runs reach it on
+    1-4 % of their samples or more, the others less or never), 3-10x the spring; a progressive
+    spring 20-100 % stiffer at the median run's 99th-percentile travel; a damper with a
+    rebound/compression ratio of 1.15-1.6 or its inverse. Sized on the runs' linear pre-runs;
+    added to every case's effects and to ``design["shared"]``."""
+    travel = [_linear_travel(c) for c in design["cases"]]
+    axles, out = [], []
+    for _ in range(n):
+        opts = [x for x in NONLINEAR if int(x[1][1]) - 3 not in axles]
+        cause, par = opts[int(rng.integers(len(opts)))]
+        i = int(par[1]) - 3
+        axles.append(i)
+        k = design["model"][f"k{i + 3}"] * next((e["value"] for e in design["shared"]
+                                                 if e.get("parameter") == f"k{i + 3}"), 1.0)
+        if cause == "bump_stop":
+            share = float(rng.uniform(0.01, 0.04))
+            ub = float(np.quantile([np.quantile(u[i], 1.0 - share) for u in travel], 0.6))
+            e = {"cause": cause, "parameter": par, "fixed": True, "ratio": float(rng.uniform(3.0, 10.0)),
+                 "travel": ub}
+            e["value"] = e["ratio"] * k
+        elif cause == "progressive_spring":
+            u99 = float(np.median([np.quantile(np.abs(u[i]), 0.99) for u in travel]))
+            e = {"cause": cause, "parameter": par, "fixed": True, "stiffening": float(rng.uniform(0.2, 1.0)),
+                 "travel_99": u99}
+            e["value"] = e["stiffening"] / (3.0 * u99 * u99)
+        else:
+            e = {"cause": cause, "parameter": par, "fixed": True,
+                 "value": float(gv._loguniform(rng, 1.15, 1.6) ** rng.choice([-1.0, 1.0]))}
+        out.append(e)
+    for c in design["cases"]:
+        c["effects"] = [dict(e) for e in out] + c["effects"]
+    design["shared"] = design["shared"] + out
+    return out
 
 
 def write_campaign(design: dict, out: str, *, progress: bool = True) -> list[str]:
@@ -122,10 +184,13 @@ def main(argv=None):
     ap.add_argument("--shared", type=int, default=2, help="number of shared parameter errors")
     ap.add_argument("--durations", type=float, nargs=2, default=(5.0, 10.0))
     ap.add_argument("--rates", type=float, nargs="+", default=(200, 250, 300, 400, 500))
+    ap.add_argument("--nonlinear", type=int, default=0, choices=(0, 1, 2),
+                    help="number of shared nonlinear suspension causes (one per axle)")
     a = ap.parse_args(argv)
-    d = draw_campaign(a.n, a.seed, n_shared=a.shared, durations=tuple(a.durations), rates=tuple(a.rates))
+    d = draw_campaign(a.n, a.seed, n_shared=a.shared, durations=tuple(a.durations), rates=tuple(a.rates),
+                      nonlinear=a.nonlinear)
     write_campaign(d, a.out)
-    print("shared:", ", ".join(f"{e['parameter']} x{e['value']:.4f}" for e in d["shared"]))
+    print("shared:", ", ".join(f"{e['cause']}[{e['parameter']}] {e['value']:.5g}" for e in d["shared"]))
 
 
 if __name__ == "__main__":

@@ -589,6 +589,14 @@ def _size_nonlinear(case: dict, p: dict, road, v: float, x0: float, tau: np.ndar
     for e in nl_eff:
         if e["cause"] == "damper_asymmetry":
             nl[(e["cause"], e["parameter"])] = e["value"]
+        elif e.get("fixed"):  # a vehicle's own law (a campaign's shared cause): the size as given
+            i = 0 if e["parameter"] == "k3" else 1
+            u = scale * (pre[f"s{i + 1}"] - s0[i])
+            if e["cause"] == "bump_stop":
+                nl[(e["cause"], e["parameter"])] = (e["value"], e["travel"])
+                e["share_linear"] = float(np.mean(u > e["travel"]))  # reached by the linear pre-run
+            else:
+                nl[(e["cause"], e["parameter"])] = e["value"]
         elif e["cause"] in ("progressive_spring", "bump_stop"):
             i = 0 if e["parameter"] == "k3" else 1
             u = scale * (pre[f"s{i + 1}"] - s0[i])

@@ -22,7 +22,7 @@ __all__ = ["campaign", "SCHEMA"]
 
 SCHEMA = "jaxdrift.campaign/1"
 #: bump when the joint fit changes what it returns for the same inputs (part of its cache key)
-JOINT_VERSION = 2
+JOINT_VERSION = 3
 
 
 def _read_cache(path):
@@ -97,6 +97,10 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     shared, theta, _ = fit.select()
     fit.reselect(specs_g, shared, theta)
     shared, theta, state = fit.select(shared, theta)
+    nl_findings, nl_corr = _joint_nonlinear(client, fit, specs, results, names, groups, specs_g, shared, theta, model,
+                                            model_given, progress, log)
+    if nl_findings:  # the linear parameters as chosen on the model carrying the joint nonlinear causes
+        shared, theta = fit.nl_shared, fit.nl_theta
     order, A, b, M, outs = fit._blocks(shared, theta, final=True)
     state = (order, A, b, M, outs, theta)
     cov = fit.covariance(state, len(shared))
@@ -114,7 +118,9 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     corr = (cov / np.outer(sd, sd)).tolist() if len(shared) and np.all(sd > 0) else []
     return {
         "extended_model": {"parameters": {k: float(p_joint[k]) for k in MODEL_KEYS},
-                           "runs": {names[i]: per_run[i]["corrections"] for i in ok}},
+                           "runs": {names[i]: per_run[i]["corrections"] for i in ok},
+                           **({"nonlinear": nl_corr} if nl_corr else {})},
+        "nonlinear_findings": nl_findings,
         "consistency": {"parameters": cons},
         "covariance": {"parameters": [c.target for c in shared], "theta": [float(x) for x in theta],
                        "theta_covariance": cov.tolist(), "correlation": corr,
@@ -124,6 +130,32 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
                     for gi, g in enumerate(groups) for i in g},
         "log": list(log), "rounds": fit.rounds,
     }
+
+
+def _joint_nonlinear(client, fit, specs, results, names, groups, specs_g, shared, theta, model, model_given,
+                     progress, log):
+    """The nonlinear causes the single runs confirmed, fitted jointly (``_nonlinear``); the linear
+    parameters chosen again on the model carrying them (``fit.nl_shared``, ``fit.nl_theta``).
+    Returns the joint findings and the extended model's nonlinear terms (empty without any)."""
+    from ..diagnosis.vehicle import apply_causes as _apply
+    from ._nonlinear import JointNonlinear, _joint_setting, fit_nonlinear, named_terms, nonlinear_findings, set_extra
+
+    flat = [i for g in groups for i in g]
+    terms = named_terms([results[i] for i in flat], [names[i] for i in flat])
+    if not terms:
+        return [], {}
+    jn = JointNonlinear(client, [specs[i] for i in flat], [names[i] for i in flat], model, model_given, terms,
+                        progress=progress, log=log)
+    comb, extra = fit_nonlinear(jn, fit, shared, theta, _apply(model, shared, theta)[0])
+    if extra is not None:
+        set_extra(fit, extra)
+        shared, theta, _ = fit.select()
+        fit.reselect(specs_g, shared, theta)
+        shared, theta, _ = fit.select(shared, theta)
+        comb, extra = fit_nonlinear(jn, fit, shared, theta, _apply(model, shared, theta)[0], joint=_joint_setting(comb))
+        set_extra(fit, extra)
+    fit.nl_shared, fit.nl_theta = shared, theta
+    return nonlinear_findings(jn, comb, _apply(model, shared, theta)[0])
 
 
 def _findings(joint: dict, results) -> list[dict]:
@@ -223,7 +255,7 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
         if joint is not None:  # what the fit implies, from the fit (cached or new)
             params = joint["consistency"]["parameters"]
             joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
-            joint["findings"] = _findings(joint, results)
+            joint["findings"] = joint.get("nonlinear_findings", []) + _findings(joint, results)
         dur = None
         if durability and joint is not None:
             from ._damage import campaign_durability

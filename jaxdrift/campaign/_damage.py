@@ -88,7 +88,8 @@ def campaign_durability(client, specs, results, names, joint, model, model_given
     items, outs = [], {}
     for i in ok:
         ext = {"parameters": joint["extended_model"]["parameters"],
-               "corrections": joint["extended_model"]["runs"][names[i]]}
+               "corrections": joint["extended_model"]["runs"][names[i]],
+               **({"nonlinear": joint["extended_model"]["nonlinear"]} if joint["extended_model"].get("nonlinear") else {})}
         noise = _noise_of(results[i]["report"])
         opts = {"extended": ext, "noise": noise, "paths": 0 if on_client else paths, "seed": seed,
                 "basquin_k": basquin_k, "draws": draws}
@@ -109,7 +110,9 @@ def campaign_durability(client, specs, results, names, joint, model, model_given
         for i in ok:
             if outs[i].get("status") == "ok" and not outs[i]["mc_damage"]:
                 ext = {"parameters": joint["extended_model"]["parameters"],
-                       "corrections": joint["extended_model"]["runs"][names[i]]}
+                       "corrections": joint["extended_model"]["runs"][names[i]],
+                       **({"nonlinear": joint["extended_model"]["nonlinear"]}
+                          if joint["extended_model"].get("nonlinear") else {})}
                 outs[i]["mc_damage"] = _client_mc(specs[i], model, model_given, ext, _noise_of(results[i]["report"]),
                                                   paths, seed, basquin_k)
     return _combine(specs, names, ok, outs, paths, len(draws), basquin_k, on_client)

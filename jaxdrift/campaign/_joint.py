@@ -90,6 +90,8 @@ class JointFit:
         self.log = log if log is not None else []
         self.crit = scipy.stats.chi2.ppf(1 - ALPHA / max(len(self.candidates), 1), 1)
         self.rounds = 0
+        #: per group, per run: the extra spring forces of the joint nonlinear causes (None: none)
+        self.extra = [None] * len(groups)
 
     # -- one round over all groups
     def _blocks(self, shared, theta, final=False, screen=True):
@@ -98,7 +100,8 @@ class JointFit:
         extras = [c for c in self.candidates if c not in shared] if screen else []
         outs = []
         for g, out in enumerate(map_tasks(
-                self.client, _blocks_call, list(range(len(self.groups))), desc=f"joint fit, round {self.rounds + 1}",
+                self.client, _blocks_call, list(zip(range(len(self.groups)), self.extra)),
+                desc=f"joint fit, round {self.rounds + 1}",
                 progress=self.progress, groups=self.groups, model=self.model, model_given=self.model_given,
                 shared=list(shared), theta_shared=np.asarray(theta, float).tolist(), extras=extras,
                 nuis=self.nuis, theta_nuis=[t.tolist() for t in self.theta_n], final=final)):
@@ -209,8 +212,9 @@ class JointFit:
     def reselect(self, specs_by_group, shared, theta):
         """Each run's sensor effects chosen again against the joint vehicle; per logger the union."""
         p_joint, _ = _apply(self.model, shared, theta)
-        flat = [s for grp in specs_by_group for s in grp]
-        res = map_tasks(self.client, reselect_task, flat, desc="sensor effects against the joint vehicle",
+        flat = [(s, None if self.extra[g] is None else self.extra[g][k])
+                for g, grp in enumerate(specs_by_group) for k, s in enumerate(grp)]
+        res = map_tasks(self.client, _reselect_call, flat, desc="sensor effects against the joint vehicle",
                         progress=self.progress, model=self.model, model_given=self.model_given,
                         joint_model={k: float(v) for k, v in p_joint.items()})
         pos = 0
@@ -221,8 +225,14 @@ class JointFit:
             self.theta_n[g] = np.asarray(th, float)
 
 
-def _blocks_call(g, *, groups, theta_nuis, nuis, **kw):
-    return blocks_task(groups[g], nuis=nuis[g], theta_nuis=theta_nuis[g], **kw)
+def _blocks_call(item, *, groups, theta_nuis, nuis, **kw):
+    g, extra = item
+    return blocks_task(groups[g], nuis=nuis[g], theta_nuis=theta_nuis[g], extra_forces=extra, **kw)
+
+
+def _reselect_call(item, **kw):
+    spec, extra = item
+    return reselect_task(spec, extra_forces=extra, **kw)
 
 
 def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[dict]:

@@ -127,7 +127,7 @@ def run_specs(paths, *, map=None, units=None, fs=None, force=False, strict_time=
 #: the campaign modules a run's diagnosis never runs (the joint fit, the outputs, the campaign
 #: damage; ``_tasks.diagnose_task`` imports none of them): the diagnose stage's code digest leaves
 #: them out, so that a change to the joint model reruns the joint stage on the cached diagnoses
-AFTER_DIAGNOSIS = ("_joint.py", "_outputs.py", "_damage.py")
+AFTER_DIAGNOSIS = ("_joint.py", "_outputs.py", "_damage.py", "_nonlinear.py", "_campaign.py")
 
 _CODE: dict = {}
 

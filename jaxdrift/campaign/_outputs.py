@@ -53,6 +53,9 @@ def write_figures(folder: str, doc: dict, results, names) -> list[str]:
     for f in joint.get("findings", []):
         p = f["parameter"]
         rows = _single_intervals(doc, results, names, p)
+        if f.get("cause") != PARAMETER_ERROR.name:  # a joint nonlinear cause: each run's own size at the joint law
+            p = f"{f['cause']}_{p}"
+            rows = [(r["run"], r["estimate"], r["interval"]) for r in f.get("per_run", [])]
         fig, ax = plt.subplots(figsize=(6.4, 1.2 + 0.22 * (len(rows) + 1)))
         ys = np.arange(len(rows) + 1)[::-1]
         for y, (n, est, iv) in zip(ys[1:], rows):
@@ -61,8 +64,12 @@ def write_figures(folder: str, doc: dict, results, names) -> list[str]:
                     fmt="D", color="C3", ms=5, capsize=3)
         ax.axvline(f["estimate"], color="C3", lw=0.6, ls=":")
         ax.set_yticks(ys, ["joint"] + [r[0] for r in rows], fontsize=7)
-        ax.set_xlabel(f"{p}: true / model (95 % intervals)")
-        ax.set_title(f"{p}: joint fit and the {len(rows)} single-run findings naming it", fontsize=9)
+        if f.get("cause") == PARAMETER_ERROR.name:
+            ax.set_xlabel(f"{p}: true / model (95 % intervals)")
+            ax.set_title(f"{p}: joint fit and the {len(rows)} single-run findings naming it", fontsize=9)
+        else:
+            ax.set_xlabel(f"{p} [{f.get('unit', '')}] (95 % intervals)")
+            ax.set_title(f"{p}: joint fit and the {len(rows)} runs' own sizes at the joint law", fontsize=9)
         fig.tight_layout()
         name = f"forest_{p}.png"
         fig.savefig(os.path.join(folder, name), dpi=110)
@@ -110,10 +117,22 @@ def summary_markdown(doc: dict) -> str:
     if joint:
         lines += ["## Joint vehicle parameters", "", "| parameter | estimate | 95 % interval (joint) | z |",
                   "|---|---|---|---|"]
-        for f in joint["findings"]:
+        lin = [f for f in joint["findings"] if f.get("cause", PARAMETER_ERROR.name) == PARAMETER_ERROR.name]
+        for f in lin:
             lines.append(f"| {f['parameter']} | {f['estimate']:.5g} | {_fmt_iv(f['interval'])} | {f['z']:.3g} |")
-        if not joint["findings"]:
+        if not lin:
             lines.append("| (none) | | | |")
+        nl = [f for f in joint["findings"] if f not in lin]
+        if nl:
+            lines += ["", "## Nonlinear causes, fitted jointly", "",
+                      "| cause | estimate | 95 % interval (joint) | confirmed | runs showing it | runs that cannot |",
+                      "|---|---|---|---|---|---|"]
+            for f in nl:
+                lines.append(f"| {f['cause']}[{f['parameter']}] | {f['estimate']:.5g} {f.get('unit', '')} | {_fmt_iv(f['interval'])} | "
+                             f"{'yes' if f.get('confirmed') else 'no'} | {', '.join(f.get('runs_showing', [])) or '-'} | "
+                             + (", ".join(f"{r['run']} ({r['why']})" for r in f.get("runs_cannot_show", [])) or "-")
+                             + " |")
+            lines += [""] + [f"- {f['cause']}[{f['parameter']}]: {f['evidence']}" for f in nl]
         lines += ["", "## Consistency across runs", ""]
         for c in joint["consistency"]["parameters"]:
             verdict = "consistent" if c["consistent"] else "NOT consistent"

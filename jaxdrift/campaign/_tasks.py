@@ -37,7 +37,9 @@ def load_spec(spec, model, model_given: bool):
     return load_run(spec.path, "vehicle", model=model if model_given else None, **spec.reading())
 
 
-def _problem(spec, model: dict, model_given: bool):
+def _problem(spec, model: dict, model_given: bool, extra=None):
+    """The run's residual problem (cached per worker process); ``extra``: the extra spring forces
+    (front, rear; fine grid) of the campaign's joint nonlinear causes its model carries."""
     from ..diagnosis.vehicle import Problem as _Problem
     from ..diagnosis.vehicle import ResidualPipeline, read_signals
 
@@ -47,7 +49,15 @@ def _problem(spec, model: dict, model_given: bool):
             _PROBLEMS.clear()
         run = read_signals(load_spec(spec, model, model_given))[0]  # as the single-run diagnosis reads it
         _PROBLEMS[key] = _Problem(ResidualPipeline(run), model)
-    return _PROBLEMS[key]
+    if extra is None:
+        return _PROBLEMS[key]
+    import hashlib
+
+    xkey = key + (hashlib.sha1(b"".join(np.ascontiguousarray(e, float).tobytes() for e in extra)).hexdigest(),)
+    if xkey not in _PROBLEMS:
+        base = _PROBLEMS[key]
+        _PROBLEMS[xkey] = base.with_pipe(base.pipe.with_extra(tuple(extra)))
+    return _PROBLEMS[xkey]
 
 
 def _write_cache(cache_file, obj) -> None:
@@ -157,7 +167,7 @@ def _fit_nuisance(probs, causes, theta, idx_n, iters: int = 5, scale=None):
 
 
 def blocks_task(group, *, model: dict, model_given: bool, shared, theta_shared, extras, nuis, theta_nuis,
-                final: bool = False) -> dict:
+                final: bool = False, extra_forces=None) -> dict:
     """One logger group's share of the joint fit at the shared parameters ``theta_shared``.
 
     The group's sensor effects ``nuis`` are fitted first (shared held); then, per run, the
@@ -167,9 +177,11 @@ def blocks_task(group, *, model: dict, model_given: bool, shared, theta_shared, 
     the RSS and the number of rows. Each run's rows (residual and sensitivities) are multiplied by
     its :func:`run_scales` at the entry ``theta``, so all of these are the run's weighted ones and
     the sums over runs are the weighted (GLS) stack. ``final``: also the run's corrections, sensor
-    findings and the gain of the campaign's extended model."""
+    findings and the gain of the campaign's extended model. ``extra_forces``: per run the extra
+    spring forces of the campaign's joint nonlinear causes (``_nonlinear``), or None."""
     _x64()
-    probs = [_problem(s, model, model_given) for s in group]
+    extra_forces = extra_forces or [None] * len(group)
+    probs = [_problem(s, model, model_given, x) for s, x in zip(group, extra_forces)]
     shared, extras, nuis = list(shared), list(extras), list(nuis)
     causes = shared + nuis
     ns, q = len(shared), len(nuis)
@@ -219,7 +231,7 @@ def _final(probs, model, causes, theta, idx_n, N, rs, ns) -> list[dict]:
     p_ext, corr = _apply(model, causes, theta)
     out = []
     for p in probs:
-        res0 = p.pipe.residuals(model, NO_CORRECTION)
+        res0 = p.pipe.with_extra(None).residuals(model, NO_CORRECTION)  # the model as given: no nonlinear term
         res1 = p.pipe.residuals(p_ext, corr)
         dynamic = sum(p.rows.values()) > 2
         findings = []
@@ -231,9 +243,10 @@ def _final(probs, model, causes, theta, idx_n, N, rs, ns) -> list[dict]:
     return out
 
 
-def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict) -> dict:
+def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict, extra_forces=None) -> dict:
     """The run's sensor effects chosen again by the single-run selection, against the campaign's
-    vehicle (the joint parameters): the vehicle's errors no longer stand in for sensor effects."""
+    vehicle (the joint parameters and, ``extra_forces``, its joint nonlinear causes): the
+    vehicle's errors no longer stand in for sensor effects."""
     _x64()
     from ..diagnosis.vehicle import SENSOR_KINDS, candidates as _candidates
     from ..diagnosis.vehicle import Problem as _Problem
@@ -242,6 +255,8 @@ def reselect_task(spec, *, model: dict, model_given: bool, joint_model: dict) ->
 
     run = read_signals(load_spec(spec, model, model_given))[0]  # as the single-run diagnosis reads it
     pipe = ResidualPipeline(run)
+    if extra_forces is not None:
+        pipe = pipe.with_extra(tuple(extra_forces))
     prob = _Problem(pipe, joint_model)
     sel = _select(prob, candidates=_candidates(pipe, SENSOR_KINDS))
     return {"causes": list(sel.fit.causes), "theta": [float(x) for x in sel.fit.theta]}

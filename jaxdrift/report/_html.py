@@ -509,15 +509,27 @@ def campaign_page(doc: dict, title: str, run_pages: dict | None = None) -> str:
                f"{len(runs)} runs.</p>" + findings_table(jf, "joint") + "</div>")
     forest = []
     cons = {c.get("parameter"): c for c in (joint.get("consistency") or {}).get("parameters") or [] if isinstance(c, dict)}
-    params = [f.get("parameter") for f in jf if f.get("parameter")] + [p for p in cons if p not in [f.get("parameter") for f in jf]]
+    for j in (f for f in jf if f.get("cause") != "parameter_error" and isinstance(f.get("per_run"), list)):
+        # a nonlinear cause fitted jointly: each run's own size at the joint law
+        lab = f"{j.get('cause')}[{j.get('parameter')}]"
+        rows = [(str(r.get("run")), float(r["estimate"]), r.get("interval") if isinstance(r.get("interval"), list) else None)
+                for r in j["per_run"] if isinstance(r, dict) and _number(r.get("estimate")) is not None]
+        if rows and isinstance(j.get("interval"), list):
+            forest.append(fig(F.forest_figure(lab, rows, (float(j["estimate"]), tuple(j["interval"])),
+                                              str(j.get("unit") or ""), reference=None),
+                              f"{lab}: each run's own size at the joint law (squares, lines), the joint estimate and "
+                              "interval (blue line, band); runs that never reach it are not drawn."))
+    jf_lin = [f for f in jf if f.get("cause") in (None, "parameter_error")]
+    params = [f.get("parameter") for f in jf_lin if f.get("parameter")] + [p for p in cons if p not in [f.get("parameter") for f in jf_lin]]
     for p in params:
         rows = []
         for r in ok:
             for f in r.get("findings") or []:
-                if isinstance(f, dict) and f.get("parameter") == p and _number(f.get("estimate")) is not None:
+                if (isinstance(f, dict) and f.get("parameter") == p and f.get("cause") in (None, "parameter_error")
+                        and _number(f.get("estimate")) is not None):
                     iv = f.get("interval") if isinstance(f.get("interval"), list) and len(f["interval"]) == 2 else None
                     rows.append((str(r.get("name", r.get("run"))), float(f["estimate"]), iv))
-        j = next((f for f in jf if f.get("parameter") == p), None)
+        j = next((f for f in jf_lin if f.get("parameter") == p), None)
         joint_iv = (float(j["estimate"]), tuple(j["interval"])) if j and isinstance(j.get("interval"), list) else None
         if rows or joint_iv:
             forest.append(fig(F.forest_figure(str(p), rows, joint_iv, str((j or {}).get("unit") or "ratio")),

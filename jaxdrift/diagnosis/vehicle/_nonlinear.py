@@ -218,16 +218,20 @@ class BumpStop(NonlinearCause):
     #: causes held the truth in 22 of 25. This floor is 1.96 x that scatter
     resolution = 1.0e-2
 
-    def __init__(self, axle: int, q: float):
+    def __init__(self, axle: int, q: float, travel: float | None = None):
         super().__init__(axle)
         self.q = q
+        #: a travel given (a campaign's stop, the same in every run): kept, never re-read off the states
+        self.given = travel is not None
+        self.u_b = travel
 
     @property
     def said_unseen(self) -> bool:  # the stop at the middle of the grid speaks for all of them
         return self.q == 0.97
 
     def prepare(self, st):
-        self.fix_travel(st)
+        if not self.given:
+            self.fix_travel(st)
 
     def state_words(self):
         i, ax = self.axle + 1, AXLES[self.axle]

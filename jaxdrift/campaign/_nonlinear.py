@@ -1,0 +1,374 @@
+"""Nonlinear suspension causes fitted jointly over a campaign (``docs/campaign.md``, "Nonlinear
+causes").
+
+A bump stop, a progressive spring or an asymmetric damper belongs to the vehicle, as its mass does:
+one law for every run. A run shows it only where it reaches it (a stop on a smooth road never does),
+so the single-run diagnoses name it in some runs and size it each on its own.
+
+The joint fit takes every such cause a single-run diagnosis named and confirmed, and sizes it in
+every run at one law (:func:`size_task`, on the workers): each run's residual under the campaign's
+extended model (the joint parameters, the run's logger's sensor effects) is regressed on the cause's
+signature exactly as the single-run adequacy test does (``diagnosis.vehicle._adequacy``: the same
+band, whitening, nuisance columns, the states iterated under the cause's force where the travel is
+not measured), in the channel where the run resolves it best (the smallest standard error: a choice
+that does not look at the residual, so it does not select on the estimate). The other joint causes
+are nuisance columns beside it. A bump stop's travel is the vehicle's too: it is profiled over a grid
+spanning the travels the runs named, the campaign's z^2 summed over runs, and its interval is the
+projection of the joint 95 % region of travel and stiffness (chi-square of 2 degrees of freedom) as
+in a single run.
+
+The runs' sizes are combined by the fixed-effect meta-analysis of the shared parameters
+(``_joint.meta_analysis``): each run weighted by its whole single-run error budget (the sandwich
+variance and the cause's resolution floor), the interval widened by the runs' over-dispersion. A run
+whose standard error is too wide for the joint size to pass the single-run test with power (or
+that never reaches a stop's travel) cannot show it, and is listed as such. The joint law then goes
+into every run's comparison as an extra spring force (``ResidualPipeline.with_extra``), so the
+linear parameters are fitted again on a model that has it, and the campaign's extended model and
+durability carry it (``extended_model.nonlinear``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import scipy.stats
+
+__all__ = ["NONLINEAR_JOINT", "named_terms", "size_task", "JointNonlinear"]
+
+#: the nonlinear causes a campaign fits jointly (tyre lift-off is read off each run's forces)
+NONLINEAR_JOINT = ("bump_stop", "damper_asymmetry", "progressive_spring")
+#: bump-stop travels profiled, between the smallest and largest travel the runs named (widened by
+#: ``STOP_WIDEN`` of the span on each side)
+STOP_GRID, STOP_WIDEN = 15, 0.25
+#: the finer grid of a stop's travel between the best travel's neighbours on the first grid
+FINE_GRID = 9
+
+
+def named_terms(results, names) -> list[dict]:
+    """The nonlinear causes the single-run diagnoses confirmed: per (cause, parameter) the runs
+    naming it, their estimates and intervals and, for a stop, the travels they named."""
+    acc: dict = {}
+    for n, r in zip(names, results):
+        if r.get("status") != "ok":
+            continue
+        rep = r["report"]
+        nl = (rep.get("extended_model") or {}).get("nonlinear") or {}
+        for f in rep.get("findings", []):
+            if f.get("cause") not in NONLINEAR_JOINT or not f.get("confirmed") or "parameter" not in f:
+                continue
+            key = (f["cause"], f["parameter"])
+            e = acc.setdefault(key, {"cause": f["cause"], "parameter": f["parameter"], "unit": f.get("unit"),
+                                     "runs": [], "travels": []})
+            e["runs"].append({"run": n, "estimate": float(f["estimate"]), "interval": f.get("interval")})
+            u = nl.get(f"stop_u{f['parameter'][1]}")
+            if f["cause"] == "bump_stop" and u is not None:
+                e["travels"].append(float(u))
+    # one cause per axle, the one most runs name (the adequacy test names one per axle too)
+    by_axle: dict = {}
+    for e in sorted(acc.values(), key=lambda e: -len(e["runs"])):
+        by_axle.setdefault(e["parameter"][1], e)
+    return sorted(by_axle.values(), key=lambda e: e["parameter"])
+
+
+def _cause_of(term: dict, travel: float | None = None):
+    from ..diagnosis.vehicle._nonlinear import BumpStop, DamperAsymmetry, ProgressiveSpring
+
+    axle = int(term["parameter"][1]) - 3
+    if term["cause"] == "bump_stop":
+        return BumpStop(axle, 0.97, travel=travel)
+    return {"damper_asymmetry": DamperAsymmetry, "progressive_spring": ProgressiveSpring}[term["cause"]](axle)
+
+
+def _settings(term: dict) -> list:
+    """The settings a term is sized at in every run: a stop's travels (a grid over the span the runs
+    named), ``[None]`` for the others."""
+    if term["cause"] != "bump_stop":
+        return [None]
+    if term.get("grid") is not None:
+        return [None if x is None else float(x) for x in term["grid"]]
+    u = np.asarray(term["travels"], float)
+    lo, hi = float(u.min()), float(u.max())
+    span = max(hi - lo, 0.1 * abs(hi), 1e-4)
+    grid = np.linspace(lo - STOP_WIDEN * span, hi + STOP_WIDEN * span, STOP_GRID)
+    return sorted({float(x) for x in np.concatenate([grid, u]) if x > 0})
+
+
+def _state_of(spec, model, model_given, causes, theta):
+    """The run's problem (no extra force), the campaign's extended model on it, its residual and states."""
+    from ..diagnosis.vehicle import apply_causes
+    from ..diagnosis.vehicle._nonlinear import model_states
+    from ._tasks import _problem
+
+    prob = _problem(spec, model, model_given)
+    prob = prob.with_pipe(prob.pipe.with_extra(None))
+    p_ext, corr = apply_causes(model, causes, theta)
+    return prob, p_ext, corr, prob.pipe.residuals(p_ext, corr), model_states(prob.pipe, p_ext, corr)
+
+
+def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: list[dict], joint: list | None = None,
+              sizes: bool = True):
+    """One run's size of each joint nonlinear term at each of its settings (``_settings``): per
+    setting ``{"setting", "theta", "se", "t", "channel"}`` (``theta`` None where the run never
+    reaches the setting). ``joint``: the joint size of each term (theta and setting): the other terms
+    enter as nuisance columns at it, and the run's extra spring forces under the joint law (fine
+    grid, front and rear) are returned as ``extra``. ``sizes=False``: that only."""
+    from ..diagnosis.vehicle._adequacy import _channel_test, _column, _refine, _tests
+    from ._tasks import _x64
+
+    _x64()
+    prob, p_ext, corr, res1, st = _state_of(spec, model, model_given, causes, theta)
+    fs = 1.0 / prob.pipe.h
+    joint = joint or [None] * len(terms)
+    out = []
+    for i, term in enumerate(terms if sizes else []):
+        others = [_cause_of(terms[k], (joint[k] or {}).get("setting")) for k in range(len(terms)) if k != i]
+        for o in others:
+            o.prepare(st)
+        settings = _settings(term)
+        cs = [_cause_of(term, x) for x in settings]
+        tests = _tests(prob, p_ext, st, res1, cs)
+        rows = []
+        for j, (setting, c) in enumerate(zip(settings, cs)):
+            best = None
+            for nm, d in tests.items():
+                col = d["S"][:, j]
+                if not np.any(np.abs(col) > 1e-12 * max(float(np.max(np.abs(d["y"]))), 1e-300)):
+                    continue  # the run never reaches it: no column
+                if others:  # the other joint terms as nuisance columns beside it
+                    d = {**d, "N": np.column_stack([d["N"]] + [_column(prob, st.p, o.axle, o.force(st), nm)[:, None]
+                                                              for o in others])}
+                t, th, se, *_ = _channel_test(d["y"], d["N"], col[:, None], fs, d["fc"])[0]
+                if np.isfinite(se) and se > 0 and (best is None or se < best[2]):
+                    best = (t, th, se, {**d, "S": col[:, None]})
+            if best is None:
+                rows.append({"setting": setting, "theta": None, "se": None, "t": None, "channel": None})
+                continue
+            t, th, se, d = best
+            th, se, _, t_fixed = _refine(prob, st, c, d, th, se)
+            rows.append({"setting": setting, "theta": float(th), "se": float(se),
+                         "t": float(t if t_fixed is None else t_fixed), "channel": d["name"]})
+        out.append(rows)
+    res = {"sizes": out}
+    if any(j is not None for j in joint):
+        res["extra"] = _extra(prob, st, terms, joint)
+    return res
+
+
+def _extra(prob, st, terms, joint) -> list:
+    """The run's extra spring forces (front, rear; fine grid) under the joint law of each term."""
+    from ..diagnosis.vehicle._nonlinear import States, travel_response
+
+    extra = [np.zeros_like(st.u[0]), np.zeros_like(st.u[0])]
+    for term, j in zip(terms, joint):
+        if j is None or j.get("theta") is None:
+            continue
+        c = _cause_of(term, j.get("setting"))
+        c.prepare(st)
+        f = j["theta"] * c.force(st)
+        if not prob.pipe.has_s[c.axle]:  # the travel the model moves with the force on it (_refine's fixed point)
+            u, v = list(st.u), list(st.v)
+            for _ in range(25):
+                du, dv = travel_response(prob.pipe, st.p, (f, 0 * f) if c.axle == 0 else (0 * f, f))
+                n = len(st.u[0])
+                u[c.axle] = 0.5 * u[c.axle] + 0.5 * (st.u[c.axle] + du[c.axle][:n])
+                v[c.axle] = 0.5 * v[c.axle] + 0.5 * (st.v[c.axle] + dv[c.axle][:n])
+                f_new = j["theta"] * c.force(States(tuple(u), tuple(v), st.s0, st.p))
+                done = float(np.max(np.abs(f_new - f))) <= 1e-6 * max(float(np.max(np.abs(f_new))), 1e-9)
+                f = f_new
+                if done:
+                    break
+        extra[c.axle] = extra[c.axle] + f
+    return [np.asarray(e, float) for e in extra]
+
+
+def _floor_theta(c, theta: float, st) -> float:
+    """The cause's resolution floor (``c.resolution`` of its estimate) in theta, as a standard error."""
+    est = c.to_estimate(theta, st)
+    h = 1e-6 * max(abs(theta), 1e-3)
+    slope = abs(c.to_estimate(theta + h, st) - est) / h
+    return c.resolution * abs(est) / max(slope, 1e-300) / 1.96
+
+
+class JointNonlinear:
+    """The joint size of the campaign's nonlinear causes over ``specs`` (every diagnosed run, in the
+    order of ``run_names``) on a Dask ``client``."""
+
+    #: a run shows a cause when its joint size would pass a two-sided 5 % test with 95 % power there
+    SHOW_Z = 1.96 + 1.645
+    #: the joint size is confirmed at the adequacy test's level (two-sided 1e-3)
+    CONFIRM_Z = float(scipy.stats.norm.isf(0.5e-3))
+
+    def __init__(self, client, specs, run_names, model: dict, model_given: bool, terms: list[dict], *,
+                 progress: bool = True, log: list | None = None):
+        self.client, self.specs, self.names = client, list(specs), list(run_names)
+        self.model, self.model_given, self.terms = model, model_given, terms
+        self.progress = progress
+        self.log = log if log is not None else []
+
+    def size(self, causes, thetas, joint=None, sizes: bool = True) -> list[dict]:
+        """Every run's sizes (:func:`size_task`) at the campaign's extended model: ``causes[i]``,
+        ``thetas[i]`` the shared parameters with run ``i``'s sensor effects."""
+        from ._executor import map_tasks
+
+        items = list(range(len(self.specs)))
+        return map_tasks(self.client, _size_call, items, desc="nonlinear causes, jointly", progress=self.progress,
+                         specs=self.specs, model=self.model, model_given=self.model_given, causes=causes,
+                         thetas=thetas, terms=self.terms, joint=joint, sizes=sizes)
+
+    def combine(self, sizes: list[dict], p_joint: dict) -> list[dict]:
+        """Per term the joint size (the best setting's meta-analysis over the runs) with its interval."""
+        from ..diagnosis.vehicle._adequacy import JOINT_CHI2
+        from ..diagnosis.vehicle._nonlinear import States
+
+        st = States((), (), (), p_joint)
+        out = []
+        for i, term in enumerate(self.terms):
+            settings = _settings(term)
+            rows = [[run["sizes"][i][k] for run in sizes] for k in range(len(settings))]
+            metas = [self._meta(term, r, st) for r in rows]
+            ok = [k for k, m in enumerate(metas) if m is not None]
+            if not ok:
+                out.append(None)
+                continue
+            best = max(ok, key=lambda k: metas[k]["z2"])
+            m = metas[best]
+            zc = math.sqrt(JOINT_CHI2) if len(settings) > 1 else 1.96
+            near = [k for k in ok if metas[k]["z2"] >= m["z2"] - JOINT_CHI2] if len(settings) > 1 else [best]
+            lo = min(metas[k]["theta"] - zc * metas[k]["se"] for k in near)
+            hi = max(metas[k]["theta"] + zc * metas[k]["se"] for k in near)
+            shows = any(r["theta"] is not None and abs(m["theta"]) >= self.SHOW_Z * math.sqrt(r["se"] ** 2 + m["floor_se"] ** 2)
+                        for r in rows[best])
+            out.append({**m, "setting": settings[best], "setting_range": [settings[min(near)], settings[max(near)]],
+                        "theta_interval": [lo, hi], "per_run": rows[best],
+                        "confirmed": bool(math.sqrt(m["z2"]) >= self.CONFIRM_Z and shows)})
+            self.log.append(f"joint {term['cause']}[{term['parameter']}]: theta {m['theta']:.5g} +- {m['se']:.3g} "
+                            f"(z {math.sqrt(m['z2']):.3g}) at {settings[best]}")
+        return out
+
+    def _meta(self, term, rows, st) -> dict | None:
+        """Inverse-variance mean over the runs with a size (each run's variance its sandwich one plus
+        the floor's), its over-dispersion-widened standard error and z^2."""
+        c = _cause_of(term, 0.0 if term["cause"] == "bump_stop" else None)
+        th = [(r["theta"], r["se"]) for r in rows if r["theta"] is not None and r["se"]]
+        if not th:
+            return None
+        med = float(np.median([t for t, _ in th]))
+        fl = _floor_theta(c, med, st)
+        e = np.array([t for t, _ in th])
+        w = 1.0 / (np.array([s for _, s in th]) ** 2 + fl * fl)
+        W = float(w.sum())
+        mean = float(w @ e / W)
+        chi2 = float(w @ (e - mean) ** 2)
+        dof = max(len(th) - 1, 1)
+        disp = max(1.0, chi2 / dof)
+        se = math.sqrt(disp / W)
+        return {"theta": mean, "se": se, "z2": mean * mean / (se * se), "chi2": chi2, "dof": dof,
+                "overdispersion": disp, "floor_se": fl}
+
+
+def _size_call(i, *, specs, causes, thetas, **kw):
+    return size_task(specs[i], causes=causes[i], theta=thetas[i], **kw)
+
+
+def run_causes(fit, shared, theta) -> tuple[list, list]:
+    """Per run (groups flattened) the shared causes with its logger's sensor effects, and their theta."""
+    causes, thetas = [], []
+    for g, grp in enumerate(fit.groups):
+        for _ in grp:
+            causes.append(list(shared) + list(fit.nuis[g]))
+            thetas.append(np.concatenate([np.asarray(theta, float), fit.theta_n[g]]).tolist())
+    return causes, thetas
+
+
+def set_extra(fit, sized: list[dict]) -> None:
+    """The joint nonlinear forces of each run (``size_task``'s ``extra``) into the fit's groups."""
+    if sized is None:
+        fit.extra = [None] * len(fit.groups)
+        return
+    pos = 0
+    for g, grp in enumerate(fit.groups):
+        fit.extra[g] = [tuple(sized[pos + k]["extra"]) for k in range(len(grp))]
+        pos += len(grp)
+
+
+def _joint_setting(comb) -> list:
+    """The confirmed terms' joint law (theta, setting); None for the others (not carried)."""
+    return [None if c is None or not c["confirmed"] else {"theta": c["theta"], "setting": c["setting"]} for c in comb]
+
+
+def fit_nonlinear(jn: "JointNonlinear", fit, shared, theta, p_joint: dict, joint=None):
+    """One round: every run's sizes at the fit's vehicle (the other terms at ``joint``), combined;
+    returns the combination and each run's extra forces under it."""
+    causes, thetas = run_causes(fit, shared, theta)
+    for t in jn.terms:
+        t.pop("grid", None)
+    comb = jn.combine(jn.size(causes, thetas, joint=joint), p_joint)
+    # a stop's travel: the profile again on a finer grid between the best travel's neighbours on the
+    # first (the other terms sized again at their own best setting, each the others' nuisance there)
+    if any(t["cause"] == "bump_stop" and c is not None for t, c in zip(jn.terms, comb)):
+        for t, c in zip(jn.terms, comb):
+            if c is None or t["cause"] != "bump_stop":
+                t["grid"] = [None] if t["cause"] != "bump_stop" else None
+                continue
+            g = _settings(t)
+            k = g.index(c["setting"])
+            t["grid"] = sorted(set(np.linspace(g[max(k - 1, 0)], g[min(k + 1, len(g) - 1)], FINE_GRID).tolist())
+                               | {c["setting"]})
+        near = [None if c is None else {"theta": c["theta"], "setting": c["setting"]} for c in comb]
+        comb_f = jn.combine(jn.size(causes, thetas, joint=near), p_joint)
+        comb = [cf if (t["cause"] == "bump_stop" and cf is not None) else c for t, c, cf in zip(jn.terms, comb, comb_f)]
+    law = _joint_setting(comb)
+    extra = jn.size(causes, thetas, joint=law, sizes=False) if any(x is not None for x in law) else None
+    return comb, extra
+
+
+def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict) -> tuple[list[dict], dict]:
+    """The report's joint findings of the nonlinear causes and the extended model's terms
+    (``extended_model.nonlinear``, the single-run report's keys)."""
+    from ..diagnosis.vehicle._nonlinear import States
+
+    st = States((), (), (), p_joint)
+    findings, correction = [], {}
+    for term, m in zip(jn.terms, comb):
+        if m is None:
+            continue
+        c = _cause_of(term, m["setting"])
+        shows, cannot, per_run = [], [], []
+        for name, r in zip(jn.names, m["per_run"]):
+            if r["theta"] is None:
+                cannot.append({"run": name, "why": "never reaches it"})
+                continue
+            v = r["se"] ** 2 + m["floor_se"] ** 2
+            z_joint = abs(m["theta"]) / math.sqrt(v)
+            ivr = sorted(c.to_estimate(r["theta"] + s * 1.96 * math.sqrt(v), st) for s in (-1, 1))
+            per_run.append({"run": name, "estimate": float(c.to_estimate(r["theta"], st)), "interval": ivr,
+                            "channel": r["channel"]})
+            (shows if z_joint >= jn.SHOW_Z else cannot).append(
+                {"run": name} if z_joint >= jn.SHOW_Z else
+                {"run": name, "why": f"too imprecise (the joint size is {z_joint:.2g} of its standard error there)"})
+        est = float(c.to_estimate(m["theta"], st))
+        iv = sorted(float(c.to_estimate(x, st)) for x in m["theta_interval"])
+        z = abs(m["theta"]) / m["se"]
+        confirmed = m["confirmed"]
+        named = [r["run"] for r in term["runs"]]
+        ev = (f"fitted jointly over the {len(jn.names)} runs, one law for all (the joint parameters and each "
+              f"logger's sensor effects in the model): the inverse-variance mean of the {len(per_run)} runs' own "
+              f"sizes at that law, z = {z:.3g}; {len(named)} of the single-run diagnoses name it; "
+              f"{len(shows)} runs show it, {len(cannot)} cannot"
+              + (f" ({', '.join(r['run'] + ': ' + r['why'] for r in cannot)})" if cannot else "")
+              + f"; the runs' sizes scatter {math.sqrt(m['overdispersion']):.3g} x their own errors.")
+        f = {"cause": term["cause"], "parameter": term["parameter"], "confirmed": confirmed, "estimate": est,
+             "unit": c.unit, "interval": iv, "z": float(z), "overdispersion": float(m["overdispersion"]),
+             "runs_showing": [r["run"] for r in shows], "runs_cannot_show": cannot, "single_run_named": named,
+             "per_run": per_run, "evidence": ev}
+        if term["cause"] == "bump_stop":
+            f["travel"] = float(m["setting"])
+            f["travel_interval"] = [float(x) for x in m["setting_range"]]
+            f["evidence"] = (f"A stop {est:.4g} N/m beyond {1e3 * m['setting']:.3g} mm of compression "
+                             f"(travel {1e3 * m['setting_range'][0]:.3g}-{1e3 * m['setting_range'][1]:.3g} mm "
+                             f"within the joint 95 % region); " + ev)
+        findings.append(f)
+        if confirmed:
+            correction.update(c.correction(m["theta"], st))
+    return findings, correction
