@@ -34,12 +34,12 @@ CAMPAIGN_CHANNELS = ("beta", "beta_z3", "beta_s", "beta_z3_s", "beta_rate", "all
 
 def draw_campaign(n: int, seed: int, *, n_shared: int = 2, durations=(5.0, 10.0),
                   rates=(200, 250, 300, 400, 500), effect_free: float = 0.3, params=None,
-                  motion_noise_share: float = 0.3, nonlinear: int = 0, road_classes=None) -> dict:
+                  motion_noise_share: float = 0.3, nonlinear=0, road_classes=None) -> dict:
     """The campaign's design: the vehicle, its shared errors, the loggers and the runs' cases.
     ``params``: the parameters with shared errors (default: ``n_shared`` drawn from ``PARAMS``);
     ``motion_noise_share``: the probability that a run's motion channels carry sensor noise;
     ``nonlinear``: how many shared nonlinear suspension causes the vehicle has (0-2, one per axle;
-    :func:`draw_nonlinear`); ``road_classes``: the classes the runs' roads are drawn from."""
+    :func:`draw_nonlinear`), or their list of (cause, parameter); ``road_classes``: the classes the runs' roads are drawn from."""
     rng = np.random.default_rng(seed)
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     nominal = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
@@ -115,18 +115,20 @@ def _linear_travel(case: dict) -> list:
     return [sig["s1"] - s0[0], sig["s2"] - s0[1]]
 
 
-def draw_nonlinear(design: dict, n: int, rng) -> list[dict]:
+def draw_nonlinear(design: dict, n, rng) -> list[dict]:
     """Give the campaign's vehicle ``n`` nonlinear suspension causes (on different axles), the same
     law in every run: a bump stop at a fixed travel (set so that about 40 % of the runs reach it on
     1-4 % of their samples or more, the others less or never), 3-10x the spring; a progressive
     spring 20-100 % stiffer at the median run's 99th-percentile travel; a damper with a
     rebound/compression ratio of 1.15-1.6 or its inverse. Sized on the runs' linear pre-runs;
-    added to every case's effects and to ``design["shared"]``."""
+    added to every case's effects and to ``design["shared"]``. ``n``: a count, or the list of
+    (cause, parameter) to give it."""
     travel = [_linear_travel(c) for c in design["cases"]]
     axles, out = [], []
-    for _ in range(n):
+    chosen = list(n) if not isinstance(n, int) else [None] * n
+    for pick in chosen:
         opts = [x for x in NONLINEAR if int(x[1][1]) - 3 not in axles]
-        cause, par = opts[int(rng.integers(len(opts)))]
+        cause, par = tuple(pick) if pick is not None else opts[int(rng.integers(len(opts)))]
         i = int(par[1]) - 3
         axles.append(i)
         k = design["model"][f"k{i + 3}"] * next((e["value"] for e in design["shared"]
