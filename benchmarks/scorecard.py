@@ -123,6 +123,8 @@ WORLDS = [
     World("attitude-standard/own", "attitude", "own_attitude", 20261213, 12, 2),
     World("attitude-wide/own", "attitude", "own_attitude", 20261214, 16, 3, {"wide": True}),
     World("campaign/indep", "campaign", "campaign", 20261215, 2, 0, {"runs": (4, 8)}),
+    # a vehicle with one or two shared nonlinear suspension causes (issue #46 item 1)
+    World("campaign-nonlinear/indep", "campaign", "campaign", 20261220, 3, 0, {"runs": (4, 8), "nonlinear": True}),
     World("real/ulog", "real", "real", 0, 0, 0, {"reader": "ulog"}),
     World("real/rosbag", "real", "real", 0, 0, 0, {"reader": "rosbag"}),
     World("real/mocap", "real", "real", 0, 0, 0, {"reader": "csv"}),
@@ -184,7 +186,8 @@ def cases(world: World) -> list[dict]:
     if b == "campaign":
         rng = np.random.default_rng(world.seed)
         lo, hi = o["runs"]
-        return [{"index": i, "runs": int(rng.integers(lo, hi + 1)), "seed": int(rng.integers(2**31))}
+        return [{"index": i, "runs": int(rng.integers(lo, hi + 1)), "seed": int(rng.integers(2**31)),
+                 **({"nonlinear": int(rng.integers(1, 3))} if o.get("nonlinear") else {})}
                 for i in range(world.n)]
     if b == "real":
         import tomllib
@@ -351,7 +354,8 @@ def _campaign(case: dict, tmp: str) -> dict:
     from benchmarks.validation import campaign_validation as cv
     from benchmarks.validation import gen_campaign as gc
 
-    design = gc.draw_campaign(case["runs"], case["seed"])
+    design = gc.draw_campaign(case["runs"], case["seed"], **({"nonlinear": case["nonlinear"], "durations": (5.0, 8.0)}
+                                                             if case.get("nonlinear") else {}))
     runs = os.path.join(tmp, "runs")
     gc.write_campaign(design, runs, progress=False)
     out = os.path.join(tmp, "out")
@@ -361,13 +365,22 @@ def _campaign(case: dict, tmp: str) -> dict:
     if p.returncode != 0:
         raise RuntimeError(f"jaxdrift campaign exit {p.returncode}: {p.stderr[-800:]}")
     s = cv.score(runs, out)
+    nl = {}
+    if case.get("nonlinear"):
+        from benchmarks.validation import campaign_nonlinear as cn
+
+        with open(os.path.join(out, "campaign.json")) as fh:
+            sn = cn.score(design, json.load(fh), out)
+        nl = {"nonlinear": [{k: r.get(k) for k in ("cause", "parameter", "true", "joint", "interval", "holds",
+                                                    "confirmed", "runs_showing")} for r in sn["nonlinear"]],
+              "extra_nonlinear": sn["extra_nonlinear"]}
     return {"stratum": "campaign", "where": f"{case['runs']} runs, {design['vehicle_kind']}",
             "campaign": {"shared": [{k: r.get(k) for k in ("parameter", "true", "joint", "joint_interval",
                                                            "contains_truth")} for r in s["shared"]],
                          "extra_joint": s["joint_parameters_not_in_truth"],
                          "differs_alarms": [c for c in s["consistency"] if not c["consistent"]],
                          "sensor_named_right": s["sensor_named_right"],
-                         "runs_ok": sum(1 for r in s["per_run"] if "single_right" in r), "runs": s["runs"]}}
+                         "runs_ok": sum(1 for r in s["per_run"] if "single_right" in r), "runs": s["runs"], **nl}}
 
 
 def _real(entry: dict, tmp: str) -> dict:
@@ -485,13 +498,22 @@ def score_world(world: World, recs: list[dict]) -> dict:
         return out
     if world.kind == "campaign":
         sh = [p for r in done for p in r["campaign"]["shared"]]
-        out["right_first"] = {"k": sum(all(p["contains_truth"] for p in r["campaign"]["shared"]) for r in done), "n": len(done)}
+        nl = [p for r in done for p in r["campaign"].get("nonlinear", [])]
+
+        def right(c):  # every shared parameter (and nonlinear cause) held by the joint interval
+            return all(p["contains_truth"] for p in c["shared"]) and all(p.get("holds") for p in c.get("nonlinear", []))
+
+        def extra(c):
+            return bool(c["extra_joint"]) or bool(c.get("extra_nonlinear"))
+        out["right_first"] = {"k": sum(right(r["campaign"]) for r in done), "n": len(done)}
         out["coverage"] = {"parameter_error/joint": {"k": sum(p["contains_truth"] for p in sh), "n": len(sh)}}
+        if nl:
+            out["coverage"]["nonlinear/joint"] = {"k": sum(bool(p.get("holds")) for p in nl), "n": len(nl)}
         out["false_alarms"] = {"k": sum(bool(r["campaign"]["differs_alarms"]) for r in done), "n": len(done)}
-        out["extra_confirmed"] = {"k": sum(bool(r["campaign"]["extra_joint"]) for r in done), "n": len(done)}
+        out["extra_confirmed"] = {"k": sum(extra(r["campaign"]) for r in done), "n": len(done)}
         out["misses"] = [f"campaign {r['index']} ({r['where']}): {r['campaign']}" for r in done
-                         if not all(p["contains_truth"] for p in r["campaign"]["shared"]) or r["campaign"]["differs_alarms"]
-                         or r["campaign"]["extra_joint"]] + [f"campaign {r['index']}: ERROR {r['error']}" for r in recs if "error" in r]
+                         if not right(r["campaign"]) or r["campaign"]["differs_alarms"] or extra(r["campaign"])] + \
+            [f"campaign {r['index']}: ERROR {r['error']}" for r in recs if "error" in r]
         return out
     scored = [(r, score_run(world.kind, r)) for r in done]
     eff = [(r, s) for r, s in scored if s["n_systematic"]]
