@@ -107,6 +107,12 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     run_names = [names[i] for g in groups for i in g]
     p_of = [len(shared) + len(n) for n in fit.nuis]
     cons = consistency(shared, theta, state, JointFit.sigma2, run_names, p_of)
+    left = {n: x for n, x in zip(run_names, getattr(fit, "not_carried", [])) if x}
+    for e in cons:  # a run that lacks a law of the vehicle cannot be compared with the others
+        e["per_run"] = [r for r in e["per_run"] if r["run"] not in left]
+        if left:
+            e["left_out"] = [{"run": n, "why": f"the joint {', '.join(x)} could not be carried into it"}
+                             for n, x in left.items()]
     from ..diagnosis.vehicle import apply_causes as _apply
 
     p_joint, _ = _apply(model, shared, theta)
@@ -155,7 +161,7 @@ def _joint_nonlinear(client, fit, specs, results, names, groups, specs_g, shared
         comb, extra = fit_nonlinear(jn, fit, shared, theta, _apply(model, shared, theta)[0], joint=_joint_setting(comb))
         set_extra(fit, extra)
     fit.nl_shared, fit.nl_theta = shared, theta
-    return nonlinear_findings(jn, comb, _apply(model, shared, theta)[0])
+    return nonlinear_findings(jn, comb, _apply(model, shared, theta)[0], getattr(fit, "not_carried", None))
 
 
 def _findings(joint: dict, results) -> list[dict]:

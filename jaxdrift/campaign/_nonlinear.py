@@ -154,15 +154,15 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
         out.append(rows)
     res = {"sizes": out}
     if any(j is not None for j in joint):
-        res["extra"] = _extra(prob, st, terms, joint)
+        res["extra"], res["unsettled"] = _extra(prob, st, terms, joint)
     return res
 
 
-def _extra(prob, st, terms, joint) -> list:
-    """The run's extra spring forces (front, rear; fine grid) under the joint law of each term."""
-    from ..diagnosis.vehicle._nonlinear import States, travel_response
-
+def _extra(prob, st, terms, joint) -> tuple[list, list]:
+    """The run's extra spring forces (front, rear; fine grid) under the joint law of each term, and
+    the terms whose force did not settle (``_fixed_point``)."""
     extra = [np.zeros_like(st.u[0]), np.zeros_like(st.u[0])]
+    unsettled: list = []
     for term, j in zip(terms, joint):
         if j is None or j.get("theta") is None:
             continue
@@ -170,19 +170,58 @@ def _extra(prob, st, terms, joint) -> list:
         c.prepare(st)
         f = j["theta"] * c.force(st)
         if not prob.pipe.has_s[c.axle]:  # the travel the model moves with the force on it (_refine's fixed point)
-            u, v = list(st.u), list(st.v)
-            for _ in range(25):
-                du, dv = travel_response(prob.pipe, st.p, (f, 0 * f) if c.axle == 0 else (0 * f, f))
-                n = len(st.u[0])
-                u[c.axle] = 0.5 * u[c.axle] + 0.5 * (st.u[c.axle] + du[c.axle][:n])
-                v[c.axle] = 0.5 * v[c.axle] + 0.5 * (st.v[c.axle] + dv[c.axle][:n])
-                f_new = j["theta"] * c.force(States(tuple(u), tuple(v), st.s0, st.p))
-                done = float(np.max(np.abs(f_new - f))) <= 1e-6 * max(float(np.max(np.abs(f_new))), 1e-9)
-                f = f_new
-                if done:
-                    break
+            f, ok = _fixed_point(prob, st, c, j["theta"], f)
+            if not ok:  # not carried into this run: a force that is not the model's would be worse than none
+                unsettled.append(f"{term['cause']}[{term['parameter']}]")
+                continue
         extra[c.axle] = extra[c.axle] + f
-    return [np.asarray(e, float) for e in extra]
+    return [np.asarray(e, float) for e in extra], unsettled
+
+
+def _fixed_point(prob, st, c, theta: float, f0: np.ndarray, iters: int = 80, tol: float = 1e-3):
+    """The cause's force at the travel the model moves with that force on it: the model is linear
+    but for the force, so this fixed point is the model's own nonlinear solution. Relaxed iteration
+    on the travel (as ``_adequacy._refine``), the relaxation scaled per sample by the law's own
+    stiffness against the spring's (Newton-like: a spring 90 % progressive at its 99th-percentile
+    travel, driven by a linear model whose travel overshoots on a rough road, has a loop gain far
+    above one), and halved from the best iterate whenever the fixed-point residual grows. The
+    residual is the force at the travel the model moves under ``f``, less ``f``. Returns the force
+    and whether it settled (residual below ``tol`` of the force); unsettled, the best iterate."""
+    from ..diagnosis.vehicle._nonlinear import States, travel_response
+
+    n, ax = len(st.u[0]), c.axle
+    k_ax, d_ax = st.p[f"k{ax + 3}"], st.p[f"d{ax + 3}"]
+    u, v = np.array(st.u[ax]), np.array(st.v[ax])
+
+    def states(uu, vv):
+        return States(tuple(uu if j == ax else st.u[j] for j in (0, 1)),
+                      tuple(vv if j == ax else st.v[j] for j in (0, 1)), st.s0, st.p)
+
+    relax, f = 0.5, f0
+    best, best_res, last = (f0, u, v), math.inf, math.inf
+    for _ in range(iters):
+        du, dv = travel_response(prob.pipe, st.p, (f, 0 * f) if ax == 0 else (0 * f, f))
+        uT, vT = st.u[ax] + du[ax][:n], st.v[ax] + dv[ax][:n]
+        fT = theta * c.force(states(uT, vT))
+        res = float(np.max(np.abs(fT - f))) if np.all(np.isfinite(fT)) else math.inf
+        scale = max(float(np.max(np.abs(f))), 1e-9)
+        if res <= tol * scale:
+            return f, True
+        if res > last:  # not contracting: back to the best iterate with half the relaxation
+            relax *= 0.5
+            f, u, v = best
+            last = math.inf
+            continue
+        if res < best_res:
+            best, best_res = (f, u, v), res
+        last = res
+        cur = states(u, v)
+        g = (np.abs(theta * (c.force(states(u + 1e-6, v)) - c.force(cur))) / 1e-6 / k_ax
+             + np.abs(theta * (c.force(states(u, v + 1e-6)) - c.force(cur))) / 1e-6 / d_ax)
+        r = relax / (1.0 + g)
+        u, v = (1 - r) * u + r * uT, (1 - r) * v + r * vT
+        f = theta * c.force(states(u, v))
+    return best[0], False
 
 
 def _floor_theta(c, theta: float, st) -> float:
@@ -297,13 +336,17 @@ def run_causes(fit, shared, theta) -> tuple[list, list]:
 
 
 def set_extra(fit, sized: list[dict]) -> None:
-    """The joint nonlinear forces of each run (``size_task``'s ``extra``) into the fit's groups."""
+    """The joint nonlinear forces of each run (``size_task``'s ``extra``) into the fit's groups;
+    ``fit.not_carried``: per run (flattened) the terms whose law could not be carried into it."""
+    fit.not_carried = [[] for grp in fit.groups for _ in grp]
     if sized is None:
         fit.extra = [None] * len(fit.groups)
         return
     pos = 0
     for g, grp in enumerate(fit.groups):
         fit.extra[g] = [tuple(sized[pos + k]["extra"]) for k in range(len(grp))]
+        for k in range(len(grp)):
+            fit.not_carried[pos + k] = list(sized[pos + k].get("unsettled", []))
         pos += len(grp)
 
 
@@ -338,7 +381,7 @@ def fit_nonlinear(jn: "JointNonlinear", fit, shared, theta, p_joint: dict, joint
     return comb, extra
 
 
-def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict) -> tuple[list[dict], dict]:
+def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict, not_carried=None) -> tuple[list[dict], dict]:
     """The report's joint findings of the nonlinear causes and the extended model's terms
     (``extended_model.nonlinear``, the single-run report's keys)."""
     from ..diagnosis.vehicle._nonlinear import States
@@ -377,6 +420,14 @@ def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict) -> tuple
              "unit": c.unit, "interval": iv, "z": float(z), "overdispersion": float(m["overdispersion"]),
              "runs_showing": [r["run"] for r in shows], "runs_cannot_show": cannot, "single_run_named": named,
              "per_run": per_run, "evidence": ev}
+        lab = f"{term['cause']}[{term['parameter']}]"
+        nc = [n for n, x in zip(jn.names, not_carried or []) if lab in x]
+        if nc:
+            f["runs_not_carried"] = nc
+            f["evidence"] += (f" Not carried into {', '.join(nc)}: the spring travel is not measured there and the "
+                              f"model's travel under the law does not settle (its linear travel overshoots far beyond "
+                              f"the law's range); those runs keep the linear model and are left out of the "
+                              f"consistency check and of the joint parameters' estimates.")
         if term["cause"] == "bump_stop":
             f["travel"] = float(m["setting"])
             f["travel_interval"] = [float(x) for x in m["setting_range"]]
