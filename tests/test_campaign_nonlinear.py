@@ -111,3 +111,39 @@ def test_campaign_fits_a_bump_stop_jointly(tmp_path):
         g = j["per_run"][n]["gain"]
         assert g["after"] < 0.1 * g["before"], (n, g)
     assert math.isfinite(f["z"]) and f["z"] > 10
+
+    # the law carried into a run whose travel is not measured is the model's own nonlinear solution:
+    # the same run read without its spring travel gives the force the measured travel gives
+    import csv
+
+    from jaxdrift.campaign._joint import sensor_causes_of
+    from jaxdrift.campaign._nonlinear import _extra, _state_of
+    from jaxdrift.diagnosis.vehicle import Cause, kind_named
+
+    with open(tmp_path / "run_000.csv", newline="") as fh:
+        rows = list(csv.reader(fh))
+    keep = [i for i, h in enumerate(rows[0]) if h not in ("s1", "s2")]
+    assert len(keep) == len(rows[0]) - 2, "the design changed: run_000 measures the spring travel"
+    with open(tmp_path / "no_travel.csv", "w", newline="") as fh:
+        csv.writer(fh).writerows([[r[i] for i in keep] for r in rows])
+    sens, th_s = sensor_causes_of(res[0]["report"])  # the run's own sensor effects (a delay on f2)
+    cs = [Cause(kind_named("parameter_error"), "m2")] + sens
+    th = [d["shared"][0]["value"] - 1.0] + th_s
+    law = [{"theta": stop["value"] / (model["k4"]), "setting": stop["travel"]}]
+    term = {"cause": "bump_stop", "parameter": "k4"}
+    got = {}
+    for key, path in (("measured", tmp_path / "run_000.csv"), ("model", tmp_path / "no_travel.csv")):
+        prob, _, _, _, st = _state_of(RunSpec(path=str(path)), model, True, cs, th)
+        ex, unsettled = _extra(prob, st, [term], law)
+        assert unsettled == []
+        got[key] = ex[1]
+    rms = lambda x: float(np.sqrt(np.mean(x * x)))  # noqa: E731
+    assert rms(got["measured"]) > 10.0, "the run does not reach the stop: the check says nothing"
+    assert rms(got["model"] - got["measured"]) <= 0.02 * rms(got["measured"])
+    # what a plain relaxed iteration or the linear travel would give instead: far off
+    st_lin = _state_of(RunSpec(path=str(tmp_path / "no_travel.csv")), model, True, cs, th)[4]
+    from jaxdrift.campaign._nonlinear import _cause_of
+
+    c = _cause_of(term, stop["travel"])
+    c.prepare(st_lin)
+    assert rms(law[0]["theta"] * c.force(st_lin) - got["measured"]) > 0.5 * rms(got["measured"])
