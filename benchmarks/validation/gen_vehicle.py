@@ -226,6 +226,8 @@ def _suspension_law(p: dict, nl: dict | None):
         cub = (nl or {}).get(("progressive_spring", ("k3", "k4")[i]))
         stop = (nl or {}).get(("bump_stop", ("k3", "k4")[i]))
         dc = d if rho is None else 2.0 * d / (1.0 + rho)
+        if rho is not None and (nl or {}).get(("damper_definition", ("d3", "d4")[i])) == "compression":
+            dc = d  # another habit: compression at the catalogue value, rebound rho times it (mean moves)
         dr = d if rho is None else rho * dc
         c = 0.0 if cub is None else cub
         kb, ub = (0.0, 0.0) if stop is None else stop
@@ -589,6 +591,8 @@ def _size_nonlinear(case: dict, p: dict, road, v: float, x0: float, tau: np.ndar
     for e in nl_eff:
         if e["cause"] == "damper_asymmetry":
             nl[(e["cause"], e["parameter"])] = e["value"]
+            if e.get("definition"):
+                nl[("damper_definition", e["parameter"])] = e["definition"]
         elif e.get("fixed"):  # a vehicle's own law (a campaign's shared cause): the size as given
             i = 0 if e["parameter"] == "k3" else 1
             u = scale * (pre[f"s{i + 1}"] - s0[i])

@@ -114,7 +114,7 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
     setting ``{"setting", "theta", "se", "t", "channel"}`` (``theta`` None where the run never
     reaches the setting). ``joint``: the joint size of each term (theta and setting): the other terms
     enter as nuisance columns at it, and the run's extra spring forces under the joint law (fine
-    grid, front and rear) are returned as ``extra``. ``sizes=False``: that only."""
+    grid, front and rear) are returned as ``extra`` when ``sizes=False`` (then without the sizes)."""
     from ..diagnosis.vehicle._adequacy import _channel_test, _column, _refine, _tests
     from ._tasks import _x64
 
@@ -130,6 +130,9 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
         settings = _settings(term)
         cs = [_cause_of(term, x) for x in settings]
         tests = _tests(prob, p_ext, st, res1, cs)
+        # the other joint terms as nuisance columns beside it (once per channel)
+        n_oth = {nm: np.column_stack([d["N"]] + [_column(prob, st.p, o.axle, o.force(st), nm)[:, None] for o in others])
+                 for nm, d in tests.items()} if others else {nm: d["N"] for nm, d in tests.items()}
         rows = []
         for j, (setting, c) in enumerate(zip(settings, cs)):
             best = None
@@ -137,9 +140,7 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
                 col = d["S"][:, j]
                 if not np.any(np.abs(col) > 1e-12 * max(float(np.max(np.abs(d["y"]))), 1e-300)):
                     continue  # the run never reaches it: no column
-                if others:  # the other joint terms as nuisance columns beside it
-                    d = {**d, "N": np.column_stack([d["N"]] + [_column(prob, st.p, o.axle, o.force(st), nm)[:, None]
-                                                              for o in others])}
+                d = {**d, "N": n_oth[nm]}
                 t, th, se, *_ = _channel_test(d["y"], d["N"], col[:, None], fs, d["fc"])[0]
                 direct = nm == f"spring{c.axle + 1}"
                 if np.isfinite(se) and se > 0 and (best is None or (direct, abs(t)) > (best[4], abs(best[0]))):
@@ -153,7 +154,7 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
                          "t": float(t if t_fixed is None else t_fixed), "channel": d["name"]})
         out.append(rows)
     res = {"sizes": out}
-    if any(j is not None for j in joint):
+    if not sizes and any(j is not None for j in joint):
         res["extra"], res["unsettled"] = _extra(prob, st, terms, joint)
     return res
 
