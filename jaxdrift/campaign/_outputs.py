@@ -138,7 +138,9 @@ def summary_markdown(doc: dict) -> str:
             verdict = "consistent" if c["consistent"] else "NOT consistent"
             lines.append(f"- {c['parameter']}: {verdict} (chi2 {c['chi2']:.3g} on {c['dof']} dof, p = {c['p_value']:.3g}; an alarm below {c.get('level', 0.01):.2g})"
                          + ("; disagreeing runs: " + ", ".join(f"{d['run']} ({d['estimate']:.5g})"
-                                                                for d in c["disagreeing_runs"]) if c["disagreeing_runs"] else ""))
+                                                                for d in c["disagreeing_runs"]) if c["disagreeing_runs"] else "")
+                         + ("; left out: " + ", ".join(f"{d['run']} ({d['why']})" for d in c["left_out"])
+                            if c.get("left_out") else ""))
         lines += ["", "## Runs", "", "| run | logger | single-run findings | sensor effects (campaign) | gain (campaign) |",
                   "|---|---|---|---|---|"]
         for r in runs:
