@@ -261,7 +261,16 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
         if joint is not None:  # what the fit implies, from the fit (cached or new)
             params = joint["consistency"]["parameters"]
             joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
-            joint["findings"] = joint.get("nonlinear_findings", []) + _findings(joint, results)
+            lin = _findings(joint, results)
+            # a parameter the stacked fit chose but the runs' own estimates do not show (their mean's
+            # interval holds "no error") is no finding, and there is nothing to check between runs
+            weak = [f["parameter"] for f in lin if not f["z"] >= 1.96]
+            if weak:
+                params = [e for e in params if e["parameter"] not in weak]
+                joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
+                joint["consistency"]["not_shown"] = weak
+                lin = [f for f in lin if f["parameter"] not in weak]
+            joint["findings"] = joint.get("nonlinear_findings", []) + lin
         dur = None
         if durability and joint is not None:
             from ._damage import campaign_durability

@@ -285,18 +285,6 @@ class JointNonlinear:
             m = metas[best]
             zc = math.sqrt(JOINT_CHI2) if len(settings) > 1 else 1.96
             near = [k for k in ok if metas[k]["z2"] >= m["z2"] - JOINT_CHI2] if len(settings) > 1 else [best]
-            if len(settings) > 1:
-                # where the runs that show it would each put the stop: the region holds every one of
-                # those travels (a travel the runs disagree on is a travel the data do not fix)
-                pref = []
-                for r in range(len(rows[best])):
-                    rb = rows[best][r]
-                    if rb["theta"] is None or abs(m["theta"]) < self.SHOW_Z * math.sqrt(rb["se"] ** 2 + m["floor_se"] ** 2):
-                        continue
-                    ts = [(rows[k][r]["t"] ** 2, k) for k in ok if rows[k][r]["theta"] is not None]
-                    pref.append(settings[max(ts)[1]])
-                if pref:
-                    near = sorted(set(near) | {k for k in ok if min(pref) <= settings[k] <= max(pref)})
             lo = min(metas[k]["theta"] - zc * metas[k]["se"] for k in near)
             hi = max(metas[k]["theta"] + zc * metas[k]["se"] for k in near)
             shows = any(r["theta"] is not None and abs(m["theta"]) >= self.SHOW_Z * math.sqrt(r["se"] ** 2 + m["floor_se"] ** 2)
