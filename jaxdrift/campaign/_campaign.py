@@ -263,8 +263,12 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
             joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
             lin = _findings(joint, results)
             # a parameter the stacked fit chose but the runs' own estimates do not show (their mean's
-            # interval holds "no error") is no finding, and there is nothing to check between runs
-            weak = [f["parameter"] for f in lin if not f["z"] >= 1.96]
+            # interval holds "no error", or it is within the single-run confirmation margin, 0.5 %)
+            # is no finding, and there is nothing to check between runs
+            from ..diagnosis.vehicle import PARAMETER_ERROR
+
+            weak = [f["parameter"] for f in lin
+                    if not f["z"] >= 1.96 or abs(f["estimate"] - 1.0) <= PARAMETER_ERROR.confirm_margin]
             if weak:
                 params = [e for e in params if e["parameter"] not in weak]
                 joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
