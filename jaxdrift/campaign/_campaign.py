@@ -97,17 +97,16 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
     shared, theta, _ = fit.select()
     fit.reselect(specs_g, shared, theta)
     shared, theta, state = fit.select(shared, theta)
-    nl_findings, nl_corr = _joint_nonlinear(client, fit, specs, results, names, groups, specs_g, shared, theta, model,
-                                            model_given, progress, log)
-    if nl_findings:  # the linear parameters as chosen on the model carrying the joint nonlinear causes
-        shared, theta = fit.nl_shared, fit.nl_theta
+    # the linear parameters chosen again on the model carrying the joint nonlinear causes
+    nl_findings, nl_corr, shared, theta = _joint_nonlinear(client, fit, specs, results, names, groups, specs_g,
+                                                           shared, theta, model, model_given, progress, log)
     order, A, b, M, outs = fit._blocks(shared, theta, final=True)
     state = (order, A, b, M, outs, theta)
     cov = fit.covariance(state, len(shared))
     run_names = [names[i] for g in groups for i in g]
     p_of = [len(shared) + len(n) for n in fit.nuis]
     cons = consistency(shared, theta, state, JointFit.sigma2, run_names, p_of)
-    left = {n: x for n, x in zip(run_names, getattr(fit, "not_carried", [])) if x}
+    left = {n: x for n, x in zip(run_names, fit.not_carried) if x}
     for e in cons:  # a run that lacks a law of the vehicle cannot be compared with the others
         e["per_run"] = [r for r in e["per_run"] if r["run"] not in left]
         if left:
@@ -140,28 +139,27 @@ def _joint(client, specs, results, names, model, model_given, progress, log):
 
 def _joint_nonlinear(client, fit, specs, results, names, groups, specs_g, shared, theta, model, model_given,
                      progress, log):
-    """The nonlinear causes the single runs confirmed, fitted jointly (``_nonlinear``); the linear
-    parameters chosen again on the model carrying them (``fit.nl_shared``, ``fit.nl_theta``).
-    Returns the joint findings and the extended model's nonlinear terms (empty without any)."""
+    """The nonlinear causes the single runs confirmed, fitted jointly (``_nonlinear``), and the linear
+    parameters chosen again on the model carrying them. Returns the joint findings, the extended
+    model's nonlinear terms (empty without any) and the shared causes with their theta."""
     from ..diagnosis.vehicle import apply_causes as _apply
-    from ._nonlinear import JointNonlinear, _joint_setting, fit_nonlinear, named_terms, nonlinear_findings, set_extra
+    from ._nonlinear import JointNonlinear, _joint_setting, fit_nonlinear, named_terms, nonlinear_findings
 
     flat = [i for g in groups for i in g]
     terms = named_terms([results[i] for i in flat], [names[i] for i in flat])
     if not terms:
-        return [], {}
+        return [], {}, shared, theta
     jn = JointNonlinear(client, [specs[i] for i in flat], [names[i] for i in flat], model, model_given, terms,
                         progress=progress, log=log)
     comb, extra = fit_nonlinear(jn, fit, shared, theta, _apply(model, shared, theta)[0])
     if extra is not None:
-        set_extra(fit, extra)
+        fit.carry(extra)
         shared, theta, _ = fit.select()
         fit.reselect(specs_g, shared, theta)
         shared, theta, _ = fit.select(shared, theta)
         comb, extra = fit_nonlinear(jn, fit, shared, theta, _apply(model, shared, theta)[0], joint=_joint_setting(comb))
-        set_extra(fit, extra)
-    fit.nl_shared, fit.nl_theta = shared, theta
-    return nonlinear_findings(jn, comb, _apply(model, shared, theta)[0], getattr(fit, "not_carried", None))
+        fit.carry(extra)
+    return (*nonlinear_findings(jn, comb, _apply(model, shared, theta)[0], fit.not_carried), shared, theta)
 
 
 def _findings(joint: dict, results) -> list[dict]:

@@ -92,6 +92,7 @@ class JointFit:
         self.rounds = 0
         #: per group, per run: the extra spring forces of the joint nonlinear causes (None: none)
         self.extra = [None] * len(groups)
+        self.not_carried = [[] for g in groups for _ in g]
 
     # -- one round over all groups
     def _blocks(self, shared, theta, final=False, screen=True):
@@ -208,6 +209,17 @@ class JointFit:
             shared = [shared[i] for i in keep]
             theta, state = self.refit(shared, theta[keep])
         return shared, theta, state
+
+    def carry(self, sized) -> None:
+        """The extra spring forces of the joint nonlinear laws, per run (``_nonlinear.size_task``'s
+        ``extra``, groups flattened; None: none), into every later round; ``not_carried``: per run the
+        laws that could not be carried into it."""
+        self.not_carried = [list((sized[i] if sized else {}).get("unsettled", [])) for i in range(sum(map(len, self.groups)))]
+        pos, extra = 0, []
+        for grp in self.groups:
+            extra.append(None if sized is None else [tuple(sized[pos + k]["extra"]) for k in range(len(grp))])
+            pos += len(grp)
+        self.extra = extra
 
     def reselect(self, specs_by_group, shared, theta):
         """Each run's sensor effects chosen again against the joint vehicle; per logger the union."""

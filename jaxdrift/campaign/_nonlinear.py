@@ -74,7 +74,7 @@ def named_terms(results, names) -> list[dict]:
 
 
 def _cause_of(term: dict, travel: float | None = None):
-    from ..diagnosis.vehicle._nonlinear import BumpStop, DamperAsymmetry, ProgressiveSpring
+    from ..diagnosis.vehicle import BumpStop, DamperAsymmetry, ProgressiveSpring
 
     axle = int(term["parameter"][1]) - 3
     if term["cause"] == "bump_stop":
@@ -99,7 +99,7 @@ def _settings(term: dict) -> list:
 def _state_of(spec, model, model_given, causes, theta):
     """The run's problem (no extra force), the campaign's extended model on it, its residual and states."""
     from ..diagnosis.vehicle import apply_causes
-    from ..diagnosis.vehicle._nonlinear import model_states
+    from ..diagnosis.vehicle import model_states
     from ._tasks import _problem
 
     prob = _problem(spec, model, model_given)
@@ -115,7 +115,8 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
     reaches the setting). ``joint``: the joint size of each term (theta and setting): the other terms
     enter as nuisance columns at it, and the run's extra spring forces under the joint law (fine
     grid, front and rear) are returned as ``extra`` when ``sizes=False`` (then without the sizes)."""
-    from ..diagnosis.vehicle._adequacy import _channel_test, _column, _refine, _tests
+    from ..diagnosis.vehicle import adequacy_tests as _tests, channel_test as _channel_test, refine_size as _refine
+    from ..diagnosis.vehicle import signature_column as _column
     from ._tasks import _x64
 
     _x64()
@@ -196,7 +197,7 @@ def _fixed_point(prob, st, laws, free, tol: float = 1e-7):
     below ``tol`` m, m/s); not converged, the forces at the linear travel."""
     import scipy.optimize
 
-    from ..diagnosis.vehicle._nonlinear import States, travel_response
+    from ..diagnosis.vehicle import States, travel_response
 
     n = len(st.u[0])
 
@@ -268,8 +269,8 @@ class JointNonlinear:
 
     def combine(self, sizes: list[dict], p_joint: dict) -> list[dict]:
         """Per term the joint size (the best setting's meta-analysis over the runs) with its interval."""
-        from ..diagnosis.vehicle._adequacy import JOINT_CHI2
-        from ..diagnosis.vehicle._nonlinear import States
+        from ..diagnosis.vehicle import JOINT_CHI2
+        from ..diagnosis.vehicle import States
 
         st = States((), (), (), p_joint)
         out = []
@@ -331,21 +332,6 @@ def run_causes(fit, shared, theta) -> tuple[list, list]:
     return causes, thetas
 
 
-def set_extra(fit, sized: list[dict]) -> None:
-    """The joint nonlinear forces of each run (``size_task``'s ``extra``) into the fit's groups;
-    ``fit.not_carried``: per run (flattened) the terms whose law could not be carried into it."""
-    fit.not_carried = [[] for grp in fit.groups for _ in grp]
-    if sized is None:
-        fit.extra = [None] * len(fit.groups)
-        return
-    pos = 0
-    for g, grp in enumerate(fit.groups):
-        fit.extra[g] = [tuple(sized[pos + k]["extra"]) for k in range(len(grp))]
-        for k in range(len(grp)):
-            fit.not_carried[pos + k] = list(sized[pos + k].get("unsettled", []))
-        pos += len(grp)
-
-
 def _joint_setting(comb) -> list:
     """The confirmed terms' joint law (theta, setting); None for the others (not carried)."""
     return [None if c is None or not c["confirmed"] else {"theta": c["theta"], "setting": c["setting"]} for c in comb]
@@ -380,7 +366,7 @@ def fit_nonlinear(jn: "JointNonlinear", fit, shared, theta, p_joint: dict, joint
 def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict, not_carried=None) -> tuple[list[dict], dict]:
     """The report's joint findings of the nonlinear causes and the extended model's terms
     (``extended_model.nonlinear``, the single-run report's keys)."""
-    from ..diagnosis.vehicle._nonlinear import States
+    from ..diagnosis.vehicle import States
 
     st = States((), (), (), p_joint)
     findings, correction = [], {}

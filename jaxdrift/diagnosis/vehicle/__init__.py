@@ -40,6 +40,12 @@ from ._causes import (
 from ._detectors import read_signals as read_signals
 from ._extend import DRIFT_THRESHOLD_RAD as DRIFT_THRESHOLD_RAD
 from ._nonlinear import nonlinear_cause_names as nonlinear_cause_names
+# the adequacy test's pieces a campaign sizes a nonlinear cause with in every run (``campaign._nonlinear``)
+from ._adequacy import (JOINT_CHI2 as JOINT_CHI2, _channel_test as channel_test, _column as signature_column,
+                        _refine as refine_size, _tests as adequacy_tests)
+from ._nonlinear import (BumpStop as BumpStop, DamperAsymmetry as DamperAsymmetry,
+                         ProgressiveSpring as ProgressiveSpring, States as States, model_states as model_states,
+                         travel_response as travel_response)
 from ._pipeline import diagnose_vehicle_run as diagnose_vehicle_run
 from ._problem import _Problem as Problem, _proj as projected_share
 from ._report import SCHEMA as SCHEMA, residual_gain as residual_gain
@@ -50,7 +56,9 @@ __all__ = ['ALPHA', 'Cause', 'DRIFT_THRESHOLD_RAD', 'FORCE_CHANNELS', 'FORCE_DEL
            'FORCE_OFFSET', 'FORCE_SCALE', 'PARAMETER_ERROR', 'Problem', 'ResidualPipeline', 'SCHEMA', 'SENSOR_KINDS',
            'VEHICLE_CAUSES', 'apply_causes', 'candidates', 'cause_names', 'clip_theta', 'diagnose_vehicle_run',
            'finding_for', 'kind_named', 'nonlinear_cause_names', 'practical_size', 'projected_share',
-           'read_signals', 'residual_gain', 'select_causes', 'theta_bounds']
+           'read_signals', 'residual_gain', 'select_causes', 'theta_bounds', 'JOINT_CHI2', 'channel_test',
+           'signature_column', 'refine_size', 'adequacy_tests', 'BumpStop', 'DamperAsymmetry', 'ProgressiveSpring',
+           'States', 'model_states', 'travel_response']
 
 
 def cause_names() -> tuple[str, ...]:
