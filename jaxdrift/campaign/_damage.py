@@ -77,6 +77,14 @@ def _q(x):
     return [float(v) for v in np.quantile(x, QUANTILES)] if x.size else None
 
 
+def _run_extended(joint: dict, name: str) -> dict:
+    """One run's extended model from the campaign's: the joint parameters, the run's logger's
+    corrections and the joint nonlinear laws where there are any."""
+    em = joint["extended_model"]
+    return {"parameters": em["parameters"], "corrections": em["runs"][name],
+            **({"nonlinear": em["nonlinear"]} if em.get("nonlinear") else {})}
+
+
 def campaign_durability(client, specs, results, names, joint, model, model_given, cache_dir, *, paths, seed,
                         basquin_k, n_draws, progress=True) -> dict:
     from ._executor import map_tasks
@@ -87,9 +95,7 @@ def campaign_durability(client, specs, results, names, joint, model, model_given
     on_client = paths > 0 and _distributed_jax()
     items, outs = [], {}
     for i in ok:
-        ext = {"parameters": joint["extended_model"]["parameters"],
-               "corrections": joint["extended_model"]["runs"][names[i]],
-               **({"nonlinear": joint["extended_model"]["nonlinear"]} if joint["extended_model"].get("nonlinear") else {})}
+        ext = _run_extended(joint, names[i])
         noise = _noise_of(results[i]["report"])
         opts = {"extended": ext, "noise": noise, "paths": 0 if on_client else paths, "seed": seed,
                 "basquin_k": basquin_k, "draws": draws}
@@ -109,10 +115,7 @@ def campaign_durability(client, specs, results, names, joint, model, model_given
     if on_client:
         for i in ok:
             if outs[i].get("status") == "ok" and not outs[i]["mc_damage"]:
-                ext = {"parameters": joint["extended_model"]["parameters"],
-                       "corrections": joint["extended_model"]["runs"][names[i]],
-                       **({"nonlinear": joint["extended_model"]["nonlinear"]}
-                          if joint["extended_model"].get("nonlinear") else {})}
+                ext = _run_extended(joint, names[i])
                 outs[i]["mc_damage"] = _client_mc(specs[i], model, model_given, ext, _noise_of(results[i]["report"]),
                                                   paths, seed, basquin_k)
     return _combine(specs, names, ok, outs, paths, len(draws), basquin_k, on_client)
