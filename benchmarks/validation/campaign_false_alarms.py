@@ -70,34 +70,45 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json")
     a = ap.parse_args(argv)
+    # consistent and different campaigns interleaved, and the JSON rewritten after each campaign, so
+    # that a sweep cut short still reports both kinds (a rerun into the same --out resumes from the
+    # campaign cache)
+    tasks = sorted([(k / a.consistent, "consistent", k) for k in range(a.consistent)]
+                   + [(k / a.different, "different", k) for k in range(a.different)])
     res = []
-    for kind, n in (("consistent", a.consistent), ("different", a.different)):
-        for k in range(n):
-            d, diff = draw(k, a.seed, a.max_runs, kind == "different")
-            r = {"kind": kind, "campaign": k, **run_one(d, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers)}
-            if diff:
-                r["different"] = diff
-                r["found"] = any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"]
-                                 for x in r.get("alarms", []))
-            res.append(r)
-            print(f"{kind} {k}: {r.get('runs')} runs, alarms {r.get('alarms', r.get('error'))}"
-                  + (f"; different {diff} found {r['found']}" if diff else ""), flush=True)
+    for _, kind, k in tasks:
+        d, diff = draw(k, a.seed, a.max_runs, kind == "different")
+        r = {"kind": kind, "campaign": k, **run_one(d, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers)}
+        if diff:
+            r["different"] = diff
+            r["found"] = any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"]
+                             for x in r.get("alarms", []))
+        res.append(r)
+        print(f"{kind} {k}: {r.get('runs')} runs, alarms {r.get('alarms', r.get('error'))}"
+              + (f"; different {diff} found {r['found']}" if diff else ""), flush=True)
+        summ = summarise(res)
+        if a.json:
+            write(a, summ, res)
+    print(json.dumps(summ, indent=1))
+
+
+def summarise(res: list[dict]) -> dict:
     cons = [r for r in res if r["kind"] == "consistent" and "error" not in r]
     diff = [r for r in res if r["kind"] == "different" and "error" not in r]
     k = sum(bool(r["alarms"]) for r in cons)
-    summ = {"consistent_campaigns": len(cons), "with_alarm": k,
+    return {"consistent_campaigns": len(cons), "with_alarm": k,
             "with_alarm_upper_95": float(scipy.stats.beta.ppf(0.95, k + 1, max(len(cons) - k, 1))) if cons else None,
             "different_campaigns": len(diff), "different_run_found": sum(r["found"] for r in diff),
             "errors": sum("error" in r for r in res)}
-    print(json.dumps(summ, indent=1))
-    if a.json:
-        import jaxdrift
 
-        with open(a.json, "w") as fh:
-            json.dump({"what": "campaign_false_alarms", "seed": a.seed, "machine": platform.platform(),
-                       "python": platform.python_version(), "jaxdrift": jaxdrift.__version__, "summary": summ,
-                       "campaigns": res}, fh, indent=1)
 
+def write(a, summ: dict, res: list[dict]) -> None:
+    import jaxdrift
+
+    with open(a.json, "w") as fh:
+        json.dump({"what": "campaign_false_alarms", "seed": a.seed, "max_runs": a.max_runs,
+                   "machine": platform.platform(), "python": platform.python_version(),
+                   "jaxdrift": jaxdrift.__version__, "summary": summ, "campaigns": res}, fh, indent=1)
 
 if __name__ == "__main__":
     main()
