@@ -181,11 +181,12 @@ def _findings(joint: dict, results) -> list[dict]:
 
 def consistency_summary(cons):
     return {"level": CONSISTENCY_LEVEL, "method": (
-        "each run's own estimate of the parameter (the other shared parameters held at the joint "
-        "values, the run's sensor effects projected out) with its single-run interval (sandwich "
-        "variance and the resolution floor); their inverse-variance mean (meta: the joint "
-        "finding's estimate and interval); chi-square of their scatter about that mean, and each "
-        "run's distance from it; family-wise: the campaign's alarms, over every parameter and every "
+        "each run's own estimate of the parameter (the run's sensor effects projected out; "
+        "estimate: the other shared parameters held at the joint values, whose inverse-variance "
+        "mean is the joint finding's estimate and interval, meta; own_estimate: every shared "
+        "parameter the run resolves free, which the test compares) with its single-run interval "
+        "(sandwich variance and the resolution floor); chi-square of the own estimates' scatter "
+        "about their mean, and each run's distance from the others'; family-wise: the campaign's alarms, over every parameter and every "
         "run, stay within the level (Bonferroni: each scatter test at level / (2 x parameters), "
         "each run's at that over the runs)"),
         "parameters": cons}

@@ -251,24 +251,62 @@ def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[di
     """Per shared parameter: each run's own estimate (the other shared parameters held at the joint
     values, the run's sensor effects projected out: one Gauss-Newton step from the joint value),
     its sandwich standard error and its ``weight`` in the joint estimate (its weighted ``Z^T Z``:
-    the joint value is, to first order, the weight-averaged runs' own estimates);
-    :func:`check_consistency` tests their scatter."""
+    the joint value is, to first order, the weight-averaged runs' own estimates); these feed the
+    meta-analysis (:func:`meta_analysis`). Beside them ``own_estimate``/``own_se``: the run's
+    marginal estimate, every shared parameter the run resolves free at once (:func:`_own_block`);
+    :func:`check_consistency` tests their scatter. Held at the joint values, a run whose mass
+    differs reads its spring as differing too; free, each difference stays where it is."""
     _, _, _, _, outs, _ = state
     rows = [(r, p_of_run[g]) for g, o in enumerate(outs) for r in o["runs"]]
+    ns = len(shared)
+    own = [_own_block(r, ns, sigma2_fn(r, p)) for r, p in rows]
     out = []
     for j, c in enumerate(shared):
         per_run = []
-        for (r, p), name in zip(rows, run_names):
+        for (r, p), name, (d_own, v_own) in zip(rows, run_names, own):
             a = r["A"][j, j]
             if a <= 0:
                 continue
             var = sigma2_fn(r, p) * r["M"][j, j] / a ** 2
             if not (var > 0 and math.isfinite(var)):
                 continue
-            per_run.append({"run": name, "estimate": c.to_estimate(theta[j] - r["b"][j] / a), "se": math.sqrt(var),
-                            "weight": float(a)})
+            row = {"run": name, "estimate": c.to_estimate(theta[j] - r["b"][j] / a), "se": math.sqrt(var),
+                   "weight": float(a), "own_estimate": None, "own_se": None}
+            if d_own is not None and math.isfinite(d_own[j]) and v_own[j] > 0 and math.isfinite(v_own[j]):
+                row["own_estimate"], row["own_se"] = c.to_estimate(theta[j] - d_own[j]), math.sqrt(v_own[j])
+            per_run.append(row)
         out.append({"parameter": c.target, "joint_estimate": c.to_estimate(theta[j]), "per_run": per_run})
     return out
+
+
+#: the smallest eigenvalue of a run's scaled information matrix of the shared parameters (a
+#: correlation matrix, so this is 1 - |rho| for two parameters) below which the run cannot tell
+#: them apart: the parameter weighing most in that direction is left out of the run's block
+_RESOLVED_EIG = 1e-9
+
+
+def _own_block(r: dict, ns: int, sigma2: float) -> tuple:
+    """A run's marginal Gauss-Newton step over the shared parameters (``delta = A_s^-1 b_s`` on
+    the run's own block, the sandwich variances ``sigma2 diag(A_s^-1 M_s A_s^-1)``); parameters the
+    run cannot separate from the others (:data:`_RESOLVED_EIG`) or does not see at all get NaN.
+    ``(None, None)`` when the run resolves none."""
+    A, b, M = (np.asarray(r["A"], float)[:ns, :ns], np.asarray(r["b"], float)[:ns],
+               np.asarray(r["M"], float)[:ns, :ns])
+    keep = [j for j in range(ns) if A[j, j] > 0 and math.isfinite(A[j, j])]
+    while keep:
+        Ak = A[np.ix_(keep, keep)]
+        d = np.sqrt(np.diag(Ak))
+        w, V = np.linalg.eigh(Ak / np.outer(d, d))
+        if w[0] > _RESOLVED_EIG:
+            break
+        keep.pop(int(np.argmax(np.abs(V[:, 0]))))
+    if not keep:
+        return None, None
+    Ainv = np.linalg.inv(A[np.ix_(keep, keep)])
+    delta, var = np.full(ns, np.nan), np.full(ns, np.nan)
+    delta[keep] = Ainv @ b[keep]
+    var[keep] = sigma2 * np.diag(Ainv @ M[np.ix_(keep, keep)] @ Ainv)
+    return delta, var
 
 
 def meta_analysis(entry: dict) -> dict | None:
@@ -293,19 +331,26 @@ def meta_analysis(entry: dict) -> dict | None:
 
 
 def check_consistency(entry: dict, family: int = 1) -> dict:
-    """The scatter of the runs' own estimates of a shared parameter about their combined value
-    (:func:`meta_analysis`; the stacked fit's value where no run has its own estimate): each run's
-    variance is its sandwich variance plus the single-run resolution floor in quadrature (its
-    single-run interval), the chi-square on runs - 1 degrees of freedom, and the runs whose own
-    estimate lies outside it. ``family``: how many parameters the campaign tests; the scatter test
+    """The scatter of the runs' own estimates of a shared parameter about their inverse-variance
+    mean (the stacked fit's value where no run has its own estimate): each run's marginal estimate
+    (:func:`_tested`: every shared parameter the run resolves free, so that a difference in one
+    parameter is not read as one in another), its variance the sandwich variance plus the
+    single-run resolution floor in quadrature (its single-run interval), the chi-square on runs - 1
+    degrees of freedom, and the runs whose own estimate lies outside it; runs that cannot separate
+    the parameter from the others are listed in ``not_separable``. ``family``: how many parameters the campaign tests; the scatter test
     runs at ``CONSISTENCY_LEVEL / (2 family)`` and each run's at that level over the runs, so the
     campaign's alarms stay within ``CONSISTENCY_LEVEL`` family-wise. The combined estimate is
     kept as ``meta``."""
     c = Cause(PARAMETER_ERROR, entry["parameter"])
     floor_se = _practical(c, None) / 1.96
     meta = meta_analysis(entry)
-    th = (meta["estimate"] if meta else entry["joint_estimate"]) - 1.0
-    ests = [(r["run"], r["estimate"] - 1.0, r["se"] ** 2 + floor_se ** 2) for r in entry["per_run"]]
+    ests = [(r["run"], e - 1.0, se ** 2 + floor_se ** 2) for r in entry["per_run"]
+            for e, se in [_tested(r)] if e is not None]
+    if ests:  # the centre: the inverse-variance mean of the estimates tested
+        w = np.array([1.0 / v for _, _, v in ests])
+        th = float(w @ np.array([e for _, e, _ in ests]) / w.sum())
+    else:
+        th = (meta["estimate"] if meta else entry["joint_estimate"]) - 1.0
     n = len(ests)
     level = CONSISTENCY_LEVEL / (2 * max(family, 1))
     z_bonf = float(scipy.stats.norm.isf(0.5 * level / max(n, 1)))
@@ -314,8 +359,20 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     pval = float(scipy.stats.chi2.sf(q, dof))
     bad = [{"run": nm, "estimate": 1.0 + e, "interval": [1.0 + e - 1.96 * math.sqrt(v), 1.0 + e + 1.96 * math.sqrt(v)],
             "z": z} for nm, e, v, z in _outlying_runs(ests, z_bonf)]
-    return {**entry, "meta": meta, "runs": n, "chi2": q, "dof": dof, "p_value": pval, "level": level,
-            "consistent": pval >= level and not bad, "disagreeing_runs": bad}
+    untested = [r["run"] for r in entry["per_run"] if _tested(r)[0] is None]
+    return {**entry, "meta": meta, "runs": len(entry["per_run"]), "runs_tested": n, "chi2": q, "dof": dof,
+            "p_value": pval, "level": level, "consistent": pval >= level and not bad, "disagreeing_runs": bad,
+            **({"not_separable": untested} if untested else {})}
+
+
+def _tested(r: dict) -> tuple:
+    """The estimate and standard error of a run that the scatter test compares: the run's marginal
+    one (``own_estimate``, every shared parameter it resolves free) where :func:`consistency` made
+    it, ``(None, None)`` where the run cannot separate this parameter from the others; the
+    conditional one for entries without (a campaign cached before the marginal estimates)."""
+    if "own_estimate" not in r:
+        return r["estimate"], r["se"]
+    return r["own_estimate"], r["own_se"]
 
 
 def _outlying_runs(ests: list, z_crit: float) -> list:

@@ -140,7 +140,9 @@ def summary_markdown(doc: dict) -> str:
                          + ("; disagreeing runs: " + ", ".join(f"{d['run']} ({d['estimate']:.5g})"
                                                                 for d in c["disagreeing_runs"]) if c["disagreeing_runs"] else "")
                          + ("; left out: " + ", ".join(f"{d['run']} ({d['why']})" for d in c["left_out"])
-                            if c.get("left_out") else ""))
+                            if c.get("left_out") else "")
+                         + ("; not tested (cannot separate it from the other shared parameters): "
+                            + ", ".join(c["not_separable"]) if c.get("not_separable") else ""))
         lines += ["", "## Runs", "", "| run | logger | single-run findings | sensor effects (campaign) | gain (campaign) |",
                   "|---|---|---|---|---|"]
         for r in runs:
