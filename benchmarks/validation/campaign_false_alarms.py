@@ -69,7 +69,15 @@ def main(argv=None):
     ap.add_argument("--out", required=True)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json")
+    ap.add_argument("--summarise", metavar="JSON", help="only recompute the summary of a sweep's JSON (in place)")
     a = ap.parse_args(argv)
+    if a.summarise:
+        doc = json.load(open(a.summarise))
+        doc["summary"] = summarise(doc["campaigns"])
+        with open(a.summarise, "w") as fh:
+            json.dump(doc, fh, indent=1)
+        print(json.dumps(doc["summary"], indent=1))
+        return
     # consistent and different campaigns interleaved, and the JSON rewritten after each campaign, so
     # that a sweep cut short still reports both kinds (a rerun into the same --out resumes from the
     # campaign cache)
@@ -99,6 +107,9 @@ def summarise(res: list[dict]) -> dict:
     return {"consistent_campaigns": len(cons), "with_alarm": k,
             "with_alarm_upper_95": float(scipy.stats.beta.ppf(0.95, k + 1, max(len(cons) - k, 1))) if cons else None,
             "different_campaigns": len(diff), "different_run_found": sum(r["found"] for r in diff),
+            # a different campaign that also names another parameter or another run: a false alarm there
+            "different_with_other_alarm": sum(any((x["parameter"], rr) != (r["different"]["parameter"], r["different"]["run"])
+                                                  for x in r["alarms"] for rr in (x["runs"] or [None])) for r in diff),
             "errors": sum("error" in r for r in res)}
 
 
