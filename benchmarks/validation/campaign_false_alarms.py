@@ -43,13 +43,14 @@ def draw(k: int, seed: int, max_runs: int, different: bool) -> tuple[dict, dict 
     return d, {"run": f"run_{i:03d}", "parameter": e["parameter"], "step": step}
 
 
-def run_one(d: dict, folder: str, workers: int) -> dict:
+def run_one(d: dict, folder: str, workers: int, scheduler: str | None = None) -> dict:
     runs, out = os.path.join(folder, "runs"), os.path.join(folder, "out")
     if not os.path.isfile(os.path.join(runs, "truth.json")):
         gc.write_campaign(d, runs, progress=False)
     exe = os.path.join(os.path.dirname(sys.executable), "jaxdrift")
     p = subprocess.run([exe, "-q", "campaign", "--manifest", os.path.join(runs, "campaign.toml"), "--out", out,
-                        "--workers", str(workers), "--no-figures"], capture_output=True, text=True)
+                        *(["--scheduler", scheduler] if scheduler else ["--workers", str(workers)]), "--no-figures"],
+                       capture_output=True, text=True)
     if p.returncode != 0:
         return {"error": p.stderr[-600:]}
     doc = json.load(open(os.path.join(out, "campaign.json")))
@@ -69,6 +70,8 @@ def main(argv=None):
     ap.add_argument("--out", required=True)
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--json")
+    ap.add_argument("--scheduler", help="a running Dask scheduler's address (workers that outlive one campaign keep "
+                    "their compiled functions); default: a local cluster per campaign")
     ap.add_argument("--summarise", metavar="JSON", help="only recompute the summary of a sweep's JSON (in place)")
     a = ap.parse_args(argv)
     if a.summarise:
@@ -86,7 +89,7 @@ def main(argv=None):
     res = []
     for _, kind, k in tasks:
         d, diff = draw(k, a.seed, a.max_runs, kind == "different")
-        r = {"kind": kind, "campaign": k, **run_one(d, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers)}
+        r = {"kind": kind, "campaign": k, **run_one(d, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers, a.scheduler)}
         if diff:
             r["different"] = diff
             r["found"] = any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"]
