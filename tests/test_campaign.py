@@ -180,7 +180,10 @@ def test_joint_interval_is_the_meta_analysis_of_the_runs():
     d = float(w @ (est - m) ** 2) / 5
     assert d > 1.5, "not over-dispersed: the test says nothing about the factor"
     cons = check_consistency(_entry("m1", est, se, 1.0 / se ** 2))
-    assert cons["chi2"] / cons["dof"] == pytest.approx(d, rel=1e-12)
+    # the interval widens by the meta-analysis's scatter (the test's chi2 shrinks each deviation by
+    # the difference margin: it judges differences that matter, not the interval)
+    assert cons["meta"]["chi2"] / cons["meta"]["dof"] == pytest.approx(d, rel=1e-12)
+    assert cons["chi2"] <= cons["meta"]["chi2"]
     c = Cause("parameter_error", "m1")
     stacked = np.array([cons["joint_estimate"] - 1.0])
     f = joint_findings([c], stacked, np.array([[1.0 / (1.0 / se ** 2).sum()]]), 6, {"m1": 3}, [cons])[0]
@@ -292,10 +295,30 @@ def test_consistency_flags_the_run_outside_its_interval():
              "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s)} for i, (e, s) in enumerate(zip(est, se))]}
     ok = check_consistency(entry)
     assert ok["consistent"] and ok["dof"] == 19 and not ok["disagreeing_runs"]
+    from jaxdrift.campaign._joint import DIFFERENCE_MARGIN
+
     half = 1.96 * math.hypot(se[7], 2e-4 / 1.96)
-    entry["per_run"][7]["estimate"] = 1.0 + 8 * half
+    entry["per_run"][7]["estimate"] = 1.0 + DIFFERENCE_MARGIN + 8 * half
     bad = check_consistency(entry)
     assert not bad["consistent"] and [d["run"] for d in bad["disagreeing_runs"]] == ["r7"]
+
+
+def test_a_difference_within_the_margin_is_no_alarm():
+    """"Differs" claims a difference that matters: beyond the single-run confirmation margin
+    (0.5 %, under which one run confirms no error). Ten runs known to 1e-5 (a precision the
+    sandwich gives on long clean runs, while their resolution error is larger): one at 1.004 is the
+    same vehicle, one at 1.008 differs. Without the margin both were alarms (400 and 800 standard
+    errors; generated campaigns raised "m2 differs" for a run 1.5 % off, a resolution error of its
+    band-limited comparison)."""
+    from jaxdrift.campaign._joint import DIFFERENCE_MARGIN, check_consistency
+
+    assert DIFFERENCE_MARGIN == 0.005
+    for dx, alarm in ((0.004, False), (0.008, True)):
+        entry = {"parameter": "m2", "joint_estimate": 1.0,
+                 "per_run": [{"run": f"r{i}", "estimate": 1.0 + (dx if i == 3 else 0.0), "se": 1e-5} for i in range(10)]}
+        res = check_consistency(entry)
+        assert res["consistent"] is not alarm, (dx, res["p_value"], res["disagreeing_runs"])
+        assert [d["run"] for d in res["disagreeing_runs"]] == (["r3"] if alarm else [])
 
 
 def test_diagnose_cache_outlives_a_change_to_the_joint_stage(tmp_path):
@@ -375,8 +398,8 @@ def _campaign_draw(rng, n_params=10, shift=0.0):
     for j in range(n_params):
         se = rng.uniform(2e-4, 3e-3, n)
         est = 1.0 + se * rng.standard_normal(n)
-        if j == 0 and shift:
-            est[0] += shift * 1.96 * math.hypot(se[0], 2e-4 / 1.96)
+        if j == 0 and shift:  # beyond the margin a difference must pass to be one (DIFFERENCE_MARGIN)
+            est[0] += 0.005 + shift * 1.96 * math.hypot(se[0], 2e-4 / 1.96)
         entries.append({"parameter": ("a", "b", "m1", "m2", "m3", "I", "k3", "k4", "d3", "d4")[j], "joint_estimate": 1.0,
                         "per_run": [{"run": f"r{i}", "estimate": float(e), "se": float(s)}
                                     for i, (e, s) in enumerate(zip(est, se))]})
@@ -387,10 +410,11 @@ def test_consistency_false_alarms_are_family_wise():
     """"X differs between runs" keeps its promise per campaign, over every parameter and run: of
     400 simulated campaigns of consistent runs (10 shared parameters, 4-16 runs), at most
     CONSISTENCY_LEVEL (5 %) raise an alarm, within the binomial allowance (20 + 1.645 sd = 27).
-    22 of 400 here; each parameter tested at 1 % with each run at 5 % over the runs (the rule
-    before) alarmed in 128. A run moved by 5 of its interval's half-widths is found (listed alone)
-    in at least 90 % of 200 campaigns (197 here; each run against a mean that included itself found
-    179)."""
+    0 of 400 here (these runs' standard errors, 2e-4 to 3e-3, are below the 0.5 % difference
+    margin), 22 of 400 without the margin; each parameter tested at 1 % with each run at 5 % over
+    the runs (the rule before) alarmed in 128. A run moved by the margin and 5 of its interval's
+    half-widths is found (listed alone) in at least 90 % of 200 campaigns (198 here; 197 without the
+    margin, moved by the half-widths alone; each run against a mean that included itself found 179)."""
     from jaxdrift.campaign._joint import CONSISTENCY_LEVEL, check_consistency
 
     rng = np.random.default_rng(20261205)

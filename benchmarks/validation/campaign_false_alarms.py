@@ -55,9 +55,7 @@ def run_one(d: dict, folder: str, workers: int, scheduler: str | None = None) ->
         return {"error": p.stderr[-600:]}
     doc = json.load(open(os.path.join(out, "campaign.json")))
     cons = (doc.get("joint") or {}).get("consistency", {}).get("parameters", [])
-    return {"runs": len(d["cases"]), "tested": [c["parameter"] for c in cons],
-            "alarms": [{"parameter": c["parameter"], "p": c["p_value"], "level": c.get("level"),
-                        "runs": [x["run"] for x in c["disagreeing_runs"]]} for c in cons if not c["consistent"]],
+    return {"runs": len(d["cases"]), "tested": [c["parameter"] for c in cons], "alarms": _alarms(cons),
             "wall_s": doc["provenance"].get("wall_s")}
 
 
@@ -73,9 +71,14 @@ def main(argv=None):
     ap.add_argument("--scheduler", help="a running Dask scheduler's address (workers that outlive one campaign keep "
                     "their compiled functions); default: a local cluster per campaign")
     ap.add_argument("--summarise", metavar="JSON", help="only recompute the summary of a sweep's JSON (in place)")
+    ap.add_argument("--rejudge", action="store_true", help="with --summarise: judge each campaign's runs again with "
+                    "this checkout's consistency test (the runs' estimates in OUT/*/out/campaign.json do not depend on it)")
     a = ap.parse_args(argv)
     if a.summarise:
         doc = json.load(open(a.summarise))
+        if a.rejudge:
+            doc["campaigns"] = [rejudge(r, os.path.join(a.out, f"{r['kind'][0]}{r['campaign']:03d}")) for r in doc["campaigns"]]
+            doc["rejudged_with"] = _commit()
         doc["summary"] = summarise(doc["campaigns"])
         with open(a.summarise, "w") as fh:
             json.dump(doc, fh, indent=1)
@@ -92,8 +95,10 @@ def main(argv=None):
         r = {"kind": kind, "campaign": k, **run_one(d, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers, a.scheduler)}
         if diff:
             r["different"] = diff
-            r["found"] = any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"]
-                             for x in r.get("alarms", []))
+            r["found"] = _found(r)
+            if "error" not in r:
+                r["different_run_se"] = _own_se(json.load(open(os.path.join(a.out, f"d{k:03d}", "out", "campaign.json")))
+                                                ["joint"]["consistency"]["parameters"], diff)
         res.append(r)
         print(f"{kind} {k}: {r.get('runs')} runs, alarms {r.get('alarms', r.get('error'))}"
               + (f"; different {diff} found {r['found']}" if diff else ""), flush=True)
@@ -103,6 +108,54 @@ def main(argv=None):
     print(json.dumps(summ, indent=1))
 
 
+def _alarms(cons: list[dict]) -> list[dict]:
+    return [{"parameter": c["parameter"], "p": c["p_value"], "level": c.get("level"),
+             "runs": [x["run"] for x in c["disagreeing_runs"]]} for c in cons if not c["consistent"]]
+
+
+def _found(r: dict) -> bool:
+    diff = r["different"]
+    return any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"] for x in r.get("alarms", []))
+
+
+def rejudge(r: dict, folder: str) -> dict:
+    """A campaign's alarms again, from the runs' estimates its campaign.json keeps."""
+    from jaxdrift.campaign._joint import check_consistency
+
+    if "error" in r:
+        return r
+    doc = json.load(open(os.path.join(folder, "out", "campaign.json")))
+    params = (doc.get("joint") or {}).get("consistency", {}).get("parameters", [])
+    r = {**r, "alarms": _alarms([check_consistency(e, family=len(params)) for e in params])}
+    if "different" in r:
+        r["found"] = _found(r)
+        r["different_run_se"] = _own_se(params, r["different"])
+    return r
+
+
+def _own_se(params: list[dict], diff: dict) -> float | None:
+    """The different run's own standard error of the parameter that differs (None: not tested)."""
+    for e in params:
+        if e["parameter"] == diff["parameter"]:
+            for x in e["per_run"]:
+                if x["run"] == diff["run"]:
+                    return x.get("own_se", x.get("se"))
+    return None
+
+
+def _commit() -> str:
+    try:
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                              cwd=os.path.dirname(os.path.abspath(__file__))).stdout.strip()
+    except OSError:
+        return "unknown"
+
+
+def _showable(r: dict) -> bool:
+    se = r.get("different_run_se")
+    return se is not None and abs(r["different"]["step"]) > 0.005 + 4.0 * se
+
+
 def summarise(res: list[dict]) -> dict:
     cons = [r for r in res if r["kind"] == "consistent" and "error" not in r]
     diff = [r for r in res if r["kind"] == "different" and "error" not in r]
@@ -110,6 +163,9 @@ def summarise(res: list[dict]) -> dict:
     return {"consistent_campaigns": len(cons), "with_alarm": k,
             "with_alarm_upper_95": float(scipy.stats.beta.ppf(0.95, k + 1, max(len(cons) - k, 1))) if cons else None,
             "different_campaigns": len(diff), "different_run_found": sum(r["found"] for r in diff),
+            # where the run could show the step: beyond the margin by 4 of its own standard errors
+            "different_showable": sum(_showable(r) for r in diff),
+            "different_showable_found": sum(r["found"] for r in diff if _showable(r)),
             # a different campaign that also names another parameter or another run: a false alarm there
             "different_with_other_alarm": sum(any((x["parameter"], rr) != (r["different"]["parameter"], r["different"]["run"])
                                                   for x in r["alarms"] for rr in (x["runs"] or [None])) for r in diff),

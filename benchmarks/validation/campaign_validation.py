@@ -84,9 +84,13 @@ def score(truth_dir: str, out_dir: str, floor: float = 2e-4) -> dict:
     truth = json.load(open(os.path.join(truth_dir, "truth.json")))
     doc = json.load(open(os.path.join(out_dir, "campaign.json")))
     loggers = {lg["id"]: lg["effect"] for lg in truth["loggers"]}
-    joint = {f["parameter"]: f for f in doc["joint"]["findings"]}
+    # the shared parameter errors (a joint nonlinear cause names its parameter too: scored by
+    # campaign_nonlinear.score)
+    joint = {f["parameter"]: f for f in doc["joint"]["findings"] if f.get("cause", "parameter_error") == "parameter_error"}
     params = []
     for e in truth["shared"]:
+        if e.get("cause", "parameter_error") != "parameter_error":
+            continue
         p, true = e["parameter"], e["value"]
         f = joint.get(p)
         singles = [fd["interval"] for r in doc["runs"] if r["status"] == "ok" for fd in r["findings"]
@@ -114,7 +118,8 @@ def score(truth_dir: str, out_dir: str, floor: float = 2e-4) -> dict:
             if cons and cons.get("per_run"):
                 row["own_estimates_vs_truth"] = _own_vs_truth(cons, true, floor / 1.96)
         params.append(row)
-    extra = [p for p in joint if p not in {e["parameter"] for e in truth["shared"]}]
+    extra = [p for p in joint if p not in {e["parameter"] for e in truth["shared"]
+                                           if e.get("cause", "parameter_error") == "parameter_error"}]
     cases = {c["index"]: c for c in truth["cases"]}
     runs, n_single, n_camp = [], 0, 0
     for r in doc["runs"]:

@@ -186,7 +186,8 @@ def consistency_summary(cons):
         "mean is the joint finding's estimate and interval, meta; own_estimate: every shared "
         "parameter the run resolves free, which the test compares) with its single-run interval "
         "(sandwich variance and the resolution floor); chi-square of the own estimates' scatter "
-        "about their mean, and each run's distance from the others'; family-wise: the campaign's alarms, over every parameter and every "
+        "about their mean, and each run's distance from the others', each deviation shrunk by the "
+        "0.5 % difference margin (a difference within it is one vehicle); family-wise: the campaign's alarms, over every parameter and every "
         "run, stay within the level (Bonferroni: each scatter test at level / (2 x parameters), "
         "each run's at that over the runs)"),
         "parameters": cons}

@@ -279,6 +279,11 @@ def consistency(shared, theta, state, sigma2_fn, run_names, p_of_run) -> list[di
     return out
 
 
+#: the smallest difference between runs that "X differs" claims: the single-run confirmation margin
+#: of a parameter error (a run within 0.5 % of the model confirms no error, so two runs within
+#: 0.5 % of each other are one vehicle); the tests ask whether the difference exceeds it
+DIFFERENCE_MARGIN = PARAMETER_ERROR.confirm_margin
+
 #: the smallest eigenvalue of a run's scaled information matrix of the shared parameters (a
 #: correlation matrix, so this is 1 - |rho| for two parameters) below which the run cannot tell
 #: them apart: the parameter weighing most in that direction is left out of the run's block
@@ -337,7 +342,10 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     parameter is not read as one in another), its variance the sandwich variance plus the
     single-run resolution floor in quadrature (its single-run interval), the chi-square on runs - 1
     degrees of freedom, and the runs whose own estimate lies outside it; runs that cannot separate
-    the parameter from the others are listed in ``not_separable``. ``family``: how many parameters the campaign tests; the scatter test
+    the parameter from the others are listed in ``not_separable``. Both tests ask whether a
+    difference exceeds :data:`DIFFERENCE_MARGIN` (each deviation shrunk by it towards 0): the claim
+    is a vehicle that differs by more than the single-run diagnosis would call no error.
+    ``family``: how many parameters the campaign tests; the scatter test
     runs at ``CONSISTENCY_LEVEL / (2 family)`` and each run's at that level over the runs, so the
     campaign's alarms stay within ``CONSISTENCY_LEVEL`` family-wise. The combined estimate is
     kept as ``meta``."""
@@ -354,11 +362,12 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     n = len(ests)
     level = CONSISTENCY_LEVEL / (2 * max(family, 1))
     z_bonf = float(scipy.stats.norm.isf(0.5 * level / max(n, 1)))
-    q = float(sum((e - th) ** 2 / v for _, e, v in ests))
+    dm = DIFFERENCE_MARGIN
+    q = float(sum(max(abs(e - th) - dm, 0.0) ** 2 / v for _, e, v in ests))
     dof = max(n - 1, 1)
     pval = float(scipy.stats.chi2.sf(q, dof))
     bad = [{"run": nm, "estimate": 1.0 + e, "interval": [1.0 + e - 1.96 * math.sqrt(v), 1.0 + e + 1.96 * math.sqrt(v)],
-            "z": z} for nm, e, v, z in _outlying_runs(ests, z_bonf)]
+            "z": z} for nm, e, v, z in _outlying_runs(ests, z_bonf, dm)]
     untested = [r["run"] for r in entry["per_run"] if _tested(r)[0] is None]
     return {**entry, "meta": meta, "runs": len(entry["per_run"]), "runs_tested": n, "chi2": q, "dof": dof,
             "p_value": pval, "level": level, "consistent": pval >= level and not bad, "disagreeing_runs": bad,
@@ -375,7 +384,7 @@ def _tested(r: dict) -> tuple:
     return r["own_estimate"], r["own_se"]
 
 
-def _outlying_runs(ests: list, z_crit: float) -> list:
+def _outlying_runs(ests: list, z_crit: float, margin: float = 0.0) -> list:
     """The runs whose estimate differs from the others', one at a time: each run against the
     inverse-variance mean of the others (``z = (e - mean_others) / sqrt(v + 1 / W_others)``; a
     run against a mean that includes itself is pulled towards it, most where it weighs most); the
@@ -388,7 +397,7 @@ def _outlying_runs(ests: list, z_crit: float) -> list:
         w = 1.0 / np.array([x[2] for x in rest])
         W, S = float(w.sum()), float(w @ e)
         mean_o = (S - w * e) / (W - w)
-        z = (e - mean_o) / np.sqrt(1.0 / w + 1.0 / (W - w))
+        z = np.sign(e - mean_o) * np.maximum(np.abs(e - mean_o) - margin, 0.0) / np.sqrt(1.0 / w + 1.0 / (W - w))
         j = int(np.argmax(np.abs(z)))
         if abs(z[j]) <= z_crit:
             break
