@@ -463,6 +463,16 @@ def test_consistency_keeps_a_difference_in_the_parameter_that_differs():
     res = {e["parameter"]: check_consistency(e, family=2) for e in entries}
     assert [d["run"] for d in res["m3"]["disagreeing_runs"]] == ["r0"]
     assert res["k3"]["consistent"], res["k3"]["disagreeing_runs"]
+    # a run whose two columns are one (it cannot tell the mass from the spring) is not tested on either
+    from jaxdrift.campaign._joint import _own_block
+
+    Z = np.column_stack([Zs[1][:, 0], 0.5 * Zs[1][:, 0]])
+    r = Z @ theta - ys[1]
+    d, v = _own_block({"A": Z.T @ Z, "b": Z.T @ r, "M": Z.T @ Z}, 2, 1.0)
+    assert np.isnan(d).sum() == 1 and np.isnan(v).sum() == 1
+    one = {**entries[0], "per_run": entries[0]["per_run"][:3] + [{**entries[0]["per_run"][3], "own_estimate": None,
+                                                                 "own_se": None}]}
+    assert check_consistency(one, family=2)["not_separable"] == ["r3"]
     # the conditional estimates (the meta-analysis's) would have named the spring as well
     cond = [{**e, "per_run": [{k: v for k, v in r.items() if not k.startswith("own_")} for r in e["per_run"]]}
             for e in entries]
