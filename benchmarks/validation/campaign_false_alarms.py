@@ -43,7 +43,7 @@ def draw(k: int, seed: int, max_runs: int, different: bool) -> tuple[dict, dict 
     return d, {"run": f"run_{i:03d}", "parameter": e["parameter"], "step": step}
 
 
-def run_one(d: dict, folder: str, workers: int, scheduler: str | None = None) -> dict:
+def run_one(d: dict, diff: dict | None, folder: str, workers: int, scheduler: str | None = None) -> dict:
     runs, out = os.path.join(folder, "runs"), os.path.join(folder, "out")
     if not os.path.isfile(os.path.join(runs, "truth.json")):
         gc.write_campaign(d, runs, progress=False)
@@ -54,9 +54,22 @@ def run_one(d: dict, folder: str, workers: int, scheduler: str | None = None) ->
     if p.returncode != 0:
         return {"error": p.stderr[-600:]}
     doc = json.load(open(os.path.join(out, "campaign.json")))
+    return {"runs": len(d["cases"]), **judged(doc, diff), "wall_s": doc["provenance"].get("wall_s")}
+
+
+def judged(doc: dict, diff: dict | None, again: bool = False) -> dict:
+    """A campaign's alarms from its campaign.json (``again``: the runs' estimates judged anew by this
+    checkout's test; they do not depend on it), and for a different campaign whether the run that
+    differs is named and its own standard error of the parameter."""
     cons = (doc.get("joint") or {}).get("consistency", {}).get("parameters", [])
-    return {"runs": len(d["cases"]), "tested": [c["parameter"] for c in cons], "alarms": _alarms(cons),
-            "wall_s": doc["provenance"].get("wall_s")}
+    if again:
+        from jaxdrift.campaign._joint import check_consistency
+
+        cons = [check_consistency(e, family=len(cons)) for e in cons]
+    r = {"tested": [c["parameter"] for c in cons], "alarms": _alarms(cons)}
+    if diff:
+        r.update(different=diff, found=_found(r["alarms"], diff), different_run_se=_own_se(cons, diff))
+    return r
 
 
 def main(argv=None):
@@ -77,7 +90,10 @@ def main(argv=None):
     if a.summarise:
         doc = json.load(open(a.summarise))
         if a.rejudge:
-            doc["campaigns"] = [rejudge(r, os.path.join(a.out, f"{r['kind'][0]}{r['campaign']:03d}")) for r in doc["campaigns"]]
+            doc["campaigns"] = [r if "error" in r else
+                                {**r, **judged(json.load(open(os.path.join(a.out, f"{r['kind'][0]}{r['campaign']:03d}",
+                                                                           "out", "campaign.json"))),
+                                               r.get("different"), again=True)} for r in doc["campaigns"]]
             doc["rejudged_with"] = _commit()
         doc["summary"] = summarise(doc["campaigns"])
         with open(a.summarise, "w") as fh:
@@ -92,13 +108,10 @@ def main(argv=None):
     res = []
     for _, kind, k in tasks:
         d, diff = draw(k, a.seed, a.max_runs, kind == "different")
-        r = {"kind": kind, "campaign": k, **run_one(d, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers, a.scheduler)}
-        if diff:
-            r["different"] = diff
-            r["found"] = _found(r)
-            if "error" not in r:
-                r["different_run_se"] = _own_se(json.load(open(os.path.join(a.out, f"d{k:03d}", "out", "campaign.json")))
-                                                ["joint"]["consistency"]["parameters"], diff)
+        r = {"kind": kind, "campaign": k, **run_one(d, diff, os.path.join(a.out, f"{kind[0]}{k:03d}"), a.workers,
+                                                    a.scheduler)}
+        if diff and "error" in r:
+            r.update(different=diff, found=False)
         res.append(r)
         print(f"{kind} {k}: {r.get('runs')} runs, alarms {r.get('alarms', r.get('error'))}"
               + (f"; different {diff} found {r['found']}" if diff else ""), flush=True)
@@ -113,24 +126,8 @@ def _alarms(cons: list[dict]) -> list[dict]:
              "runs": [x["run"] for x in c["disagreeing_runs"]]} for c in cons if not c["consistent"]]
 
 
-def _found(r: dict) -> bool:
-    diff = r["different"]
-    return any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"] for x in r.get("alarms", []))
-
-
-def rejudge(r: dict, folder: str) -> dict:
-    """A campaign's alarms again, from the runs' estimates its campaign.json keeps."""
-    from jaxdrift.campaign._joint import check_consistency
-
-    if "error" in r:
-        return r
-    doc = json.load(open(os.path.join(folder, "out", "campaign.json")))
-    params = (doc.get("joint") or {}).get("consistency", {}).get("parameters", [])
-    r = {**r, "alarms": _alarms([check_consistency(e, family=len(params)) for e in params])}
-    if "different" in r:
-        r["found"] = _found(r)
-        r["different_run_se"] = _own_se(params, r["different"])
-    return r
+def _found(alarms: list[dict], diff: dict) -> bool:
+    return any(x["parameter"] == diff["parameter"] and diff["run"] in x["runs"] for x in alarms)
 
 
 def _own_se(params: list[dict], diff: dict) -> float | None:
@@ -152,8 +149,10 @@ def _commit() -> str:
 
 
 def _showable(r: dict) -> bool:
+    from jaxdrift.campaign._joint import DIFFERENCE_MARGIN
+
     se = r.get("different_run_se")
-    return se is not None and abs(r["different"]["step"]) > 0.005 + 4.0 * se
+    return se is not None and abs(r["different"]["step"]) > DIFFERENCE_MARGIN + 4.0 * se
 
 
 def summarise(res: list[dict]) -> dict:

@@ -352,8 +352,13 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     c = Cause(PARAMETER_ERROR, entry["parameter"])
     floor_se = _practical(c, None) / 1.96
     meta = meta_analysis(entry)
-    ests = [(r["run"], e - 1.0, se ** 2 + floor_se ** 2) for r in entry["per_run"]
-            for e, se in [_tested(r)] if e is not None]
+    ests, untested = [], []
+    for r in entry["per_run"]:
+        e, se = _tested(r)
+        if e is None:
+            untested.append(r["run"])
+        else:
+            ests.append((r["run"], e - 1.0, se ** 2 + floor_se ** 2))
     if ests:  # the centre: the inverse-variance mean of the estimates tested
         w = np.array([1.0 / v for _, _, v in ests])
         th = float(w @ np.array([e for _, e, _ in ests]) / w.sum())
@@ -362,23 +367,28 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     n = len(ests)
     level = CONSISTENCY_LEVEL / (2 * max(family, 1))
     z_bonf = float(scipy.stats.norm.isf(0.5 * level / max(n, 1)))
-    dm = DIFFERENCE_MARGIN
-    q = float(sum(max(abs(e - th) - dm, 0.0) ** 2 / v for _, e, v in ests))
+    q = float(sum(_beyond_margin(e - th) ** 2 / v for _, e, v in ests))
     dof = max(n - 1, 1)
     pval = float(scipy.stats.chi2.sf(q, dof))
     bad = [{"run": nm, "estimate": 1.0 + e, "interval": [1.0 + e - 1.96 * math.sqrt(v), 1.0 + e + 1.96 * math.sqrt(v)],
-            "z": z} for nm, e, v, z in _outlying_runs(ests, z_bonf, dm)]
-    untested = [r["run"] for r in entry["per_run"] if _tested(r)[0] is None]
+            "z": z} for nm, e, v, z in _outlying_runs(ests, z_bonf, DIFFERENCE_MARGIN)]
     return {**entry, "meta": meta, "runs": len(entry["per_run"]), "runs_tested": n, "chi2": q, "dof": dof,
             "p_value": pval, "level": level, "consistent": pval >= level and not bad, "disagreeing_runs": bad,
             **({"not_separable": untested} if untested else {})}
+
+
+def _beyond_margin(d, margin: float = DIFFERENCE_MARGIN):
+    """A deviation (or an array of them) shrunk towards 0 by ``margin``, its sign kept: how far it
+    lies beyond the difference that "differs" does not claim."""
+    return np.sign(d) * np.maximum(np.abs(d) - margin, 0.0)
 
 
 def _tested(r: dict) -> tuple:
     """The estimate and standard error of a run that the scatter test compares: the run's marginal
     one (``own_estimate``, every shared parameter it resolves free) where :func:`consistency` made
     it, ``(None, None)`` where the run cannot separate this parameter from the others; the
-    conditional one for entries without (a campaign cached before the marginal estimates)."""
+    conditional one for entries that carry only ``estimate`` and ``se`` (made by hand from
+    per-run estimates)."""
     if "own_estimate" not in r:
         return r["estimate"], r["se"]
     return r["own_estimate"], r["own_se"]
@@ -397,7 +407,7 @@ def _outlying_runs(ests: list, z_crit: float, margin: float = 0.0) -> list:
         w = 1.0 / np.array([x[2] for x in rest])
         W, S = float(w.sum()), float(w @ e)
         mean_o = (S - w * e) / (W - w)
-        z = np.sign(e - mean_o) * np.maximum(np.abs(e - mean_o) - margin, 0.0) / np.sqrt(1.0 / w + 1.0 / (W - w))
+        z = _beyond_margin(e - mean_o, margin) / np.sqrt(1.0 / w + 1.0 / (W - w))
         j = int(np.argmax(np.abs(z)))
         if abs(z[j]) <= z_crit:
             break
