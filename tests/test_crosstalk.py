@@ -83,7 +83,7 @@ def test_registered_and_off_the_default_draws():
 
 
 @pytest.mark.parametrize("effects,seed", [
-    ([{"cause": "force_crosstalk", "channel": "f2", "value": 0.03}], 71),
+    pytest.param([{"cause": "force_crosstalk", "channel": "f2", "value": 0.03}], 71, marks=pytest.mark.tier2),
     ([{"cause": "force_crosstalk", "channel": "f1", "value": -0.02},
       {"cause": "force_offset", "channel": "f2", "value": 60.0}], 72),
 ])

@@ -81,7 +81,7 @@ def test_a_finding_the_resimulation_does_not_confirm_stays_a_finding():
     assert [c.label for c in sel.fit.causes] == ["force_offset[f1]"]
 
 
-@pytest.mark.parametrize("case", ["k3", "delay+scale", "delay+inertia"])
+@pytest.mark.parametrize("case", ["k3", "delay+scale", pytest.param("delay+inertia", marks=pytest.mark.tier2)])
 def test_right_findings_are_confirmed_and_in_the_extended_model(case):
     """The three kinds of right finding the full-band gate dropped on independent runs: a k3 error
     of 10 % (class D road, 500 Hz, 2 N of noise); a 3 ms delay with a 3 % scale; a 3 ms delay with

@@ -351,7 +351,7 @@ def test_sensor_noise_on_the_measured_motion_is_filtered_out():
     assert _Problem(ResidualPipeline(_run(clean)), DEFAULT_MODEL).pipe.band == {}
 
 
-@pytest.mark.parametrize("level, chans", [(1e-5, ("beta",)), (1e-4, ("beta",)), (3e-5, ("beta", "z3", "s1", "s2"))])
+@pytest.mark.parametrize("level, chans", [pytest.param(1e-5, ("beta",), marks=pytest.mark.tier2), (1e-4, ("beta",)), (3e-5, ("beta", "z3", "s1", "s2"))])
 def test_heavy_sensor_noise_on_the_motion(level, chans):
     """1e-5 to 1e-4 of white noise on the measured motion (a 500 Hz run, 30 s) leaves the
     residuals a band of 1-4 Hz. The offset must still be found with the truth inside its

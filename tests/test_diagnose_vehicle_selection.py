@@ -41,7 +41,7 @@ NOISY_MOTION = dict(road_class="C", speed=22.0, fs=500.0, duration=20.0,
                     motion_noise={"beta": 6e-5, "z3": 6e-5})
 
 
-@pytest.mark.parametrize("seed", [5151, 5152])
+@pytest.mark.parametrize("seed", [5151, pytest.param(5152, marks=pytest.mark.tier2)])
 def test_strong_motion_noise_alone_is_no_systematic_finding(tmp_path, seed):
     """6e-5 rad / m of white noise on pitch and heave (500 Hz, road C) and 1 N of force noise, no
     effect: the low-passed channels must not ring with the differentiated noise (before the taper
@@ -100,7 +100,7 @@ SMALL_NOISE = dict(road_class="D", speed=12.0, fs=1000.0, duration=12.0, channel
                    channels=["beta", "z3", "s1", "s2"], precision=8, motion_noise={})
 
 
-@pytest.mark.parametrize("seed,level", [(5161, 0.3), (5162, 0.2)])
+@pytest.mark.parametrize("seed,level", [pytest.param(5161, 0.3, marks=pytest.mark.tier2), (5162, 0.2)])
 def test_small_force_noise_is_reported_at_1000_hz(tmp_path, seed, level):
     """0.2-0.3 N of force noise next to an offset, 1000 Hz, rough road D, motion written with 8
     digits: below the old 0.5 N floor, and the forces' 4th differences hold road content (so
@@ -131,7 +131,8 @@ def test_noise_free_500_hz_rough_run_reports_no_noise(tmp_path):
     assert bound["estimate"] <= bound["interval"][1] < 1.0, bound
 
 
-@pytest.mark.parametrize("seed,level,fs,road", [(5171, 0.7, 500.0, "C"), (5172, 1.5, 250.0, "D"), (5173, 4.0, 500.0, "B")])
+@pytest.mark.parametrize("seed,level,fs,road", [(5171, 0.7, 500.0, "C"), (5172, 1.5, 250.0, "D"),
+                                                     pytest.param(5173, 4.0, 500.0, "B", marks=pytest.mark.tier2)])
 def test_effect_free_run_always_states_its_noise(tmp_path, seed, level, fs, road):
     """Issue 35: an effect-free run with 0.7-4 N of force noise says something about it: a level
     whose interval holds the truth, or an upper bound [0, b] with b at least the truth."""

@@ -139,7 +139,8 @@ def _true_damage(truth, k=5.0):
     return np.array([load_statistics(f3, k)["damage"], load_statistics(f4, k)["damage"]])
 
 
-@pytest.mark.parametrize("road, fs, pitch_noise_deg", [("B", 200.0, 0.02), ("C", 500.0, 0.01), ("E", 2000.0, 0.02)])
+@pytest.mark.parametrize("road, fs, pitch_noise_deg", [("B", 200.0, 0.02), ("C", 500.0, 0.01),
+                                                               pytest.param("E", 2000.0, 0.02, marks=pytest.mark.tier2)])
 def test_stabilised_damage_within_5_percent_of_the_truth(road, fs, pitch_noise_deg):
     from jaxdrift.studies import make_run
 

@@ -38,7 +38,7 @@ def test_catalogue_entry():
 
 
 @pytest.mark.parametrize("effects,seed", [
-    ([{"cause": "force_gain_drift", "channel": "f2", "value": 8e-4}], 61),
+    pytest.param([{"cause": "force_gain_drift", "channel": "f2", "value": 8e-4}], 61, marks=pytest.mark.tier2),
     ([{"cause": "force_gain_drift", "channel": "f1", "value": -6e-4},
       {"cause": "force_offset", "channel": "f2", "value": 40.0}], 62),
 ])

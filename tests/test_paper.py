@@ -116,7 +116,7 @@ def test_enforced_moment_small_for_the_true_model_large_for_a_perturbed_one(meas
     assert np.abs(np.asarray(lam_p)).max() > 10 * np.abs(lam).max()
 
 
-@pytest.mark.slow  # ~1.5 min (three compilations); the section-4 notebook test runs the study too
+@pytest.mark.slow  # ~1.5 min (three compilations); the section-4 notebook test (tier2, CI) runs the study too
 def test_study_end_to_end_small(measured, tmp_path):
     cfg = StudyConfig(duration=T, n_noise=2, n_models=2, n_compare=2, n_spring=1, pitch_spring_stiffness=(1e3,),
                       compare_solvers=(SOLVER_LOOSE,), progress=False)
