@@ -147,3 +147,87 @@ def test_campaign_fits_a_bump_stop_jointly(tmp_path):
     c = _cause_of(term, stop["travel"])
     c.prepare(st_lin)
     assert rms(law[0]["theta"] * c.force(st_lin) - got["measured"]) > 0.5 * rms(got["measured"])
+
+
+def _fake_sizes(jn, by_cause):
+    """``jn.size`` replaced by per-run sizes drawn from ``by_cause[cause](setting, run)`` -> (theta, se)."""
+    from jaxdrift.campaign._nonlinear import _settings
+
+    def size(causes, thetas, joint=None, sizes=True, only=None):
+        out = []
+        for r in range(len(jn.names)):
+            rows = []
+            for i, t in enumerate(jn.terms):
+                if only is not None and i not in only:
+                    rows.append(None)
+                    continue
+                rows.append([{"setting": x, "channel": "moment",
+                              **dict(zip(("theta", "se"), by_cause[t["cause"]](x, r)))} for x in _settings(t)])
+                for row in rows[-1]:
+                    row["t"] = row["theta"] / row["se"]
+            out.append({"sizes": rows})
+        return out
+
+    jn.size = size
+
+
+def _named(per_run):
+    """Single-run results naming ``(cause, parameter, estimate, travel)`` per run."""
+    res = []
+    for cause, par, est, u in per_run:
+        f = {"cause": cause, "parameter": par, "confirmed": True, "estimate": est, "interval": [est, est]}
+        nl = {f"stop_u{par[1]}": u} if u is not None else {}
+        res.append({"status": "ok", "report": {"findings": [f], "extended_model": {"nonlinear": nl}}})
+    return res
+
+
+def test_rival_causes_on_one_axle_are_chosen_by_the_joint_fit():
+    """Two runs name a bump stop on k3 (at travels 5.7 and 55 mm), one a progressive spring: the
+    single runs' majority would keep the stop. Fitted jointly, the stop's sizes disagree between runs
+    (over-dispersion deflates its z^2) while the spring's agree: the spring stays, the stop is kept as
+    its rival with its score. With the stop's sizes agreeing and stronger, the stop stays."""
+    from jaxdrift.campaign._nonlinear import JointNonlinear, choose_rivals, named_terms
+
+    names = ["r0", "r1", "r2"]
+    res = _named([("bump_stop", "k3", 3e4, 0.0057), ("bump_stop", "k3", 1.7e5, 0.055),
+                  ("progressive_spring", "k3", 900.0, None)])
+    p = {"k3": 37000.0, "k4": 36000.0}
+    for stop_agrees, want in ((False, "progressive_spring"), (True, "bump_stop")):
+        terms = named_terms(res, names)
+        assert [t["cause"] for t in terms] == ["bump_stop"] and terms[0]["rivals"][0]["cause"] == "progressive_spring"
+        jn = JointNonlinear(None, [None] * 3, names, p, True, terms, progress=False)
+        spring = lambda x, r: (900.0 + 20 * r, 25.0)  # noqa: E731
+        if stop_agrees:
+            stop = lambda x, r: (4.0 + 0.01 * r, 0.02)  # noqa: E731
+        else:
+            stop = lambda x, r: ((0.9, -0.25, 1.4)[r], 0.05)  # noqa: E731
+        _fake_sizes(jn, {"bump_stop": stop, "progressive_spring": spring})
+        choose_rivals(jn, [None] * 3, [None] * 3, p)
+        assert jn.terms[0]["cause"] == want, jn.log
+        rv = jn.terms[0]["rivals"][0]
+        assert rv["cause"] != want and rv["score"] < jn.terms[0]["score"]
+        assert rv["runs"] == (["r2"] if want == "bump_stop" else ["r0", "r1"])
+
+
+def test_a_stop_travel_on_the_grid_edge_moves_the_grid():
+    """Both runs named a stop at 12.0 mm (their sensor models were wrong); jointly the evidence peaks
+    at 14.1 mm, beyond the grid spanned by the named travels. The grid moves until the best travel is
+    inside it, and the joint size is the one at the peak (a grid kept at its edge reads 12.3 mm and
+    the size there)."""
+    from jaxdrift.campaign._nonlinear import JointNonlinear, _off_edge, _settings, named_terms
+
+    names = ["r0", "r1"]
+    res = _named([("bump_stop", "k4", 7.2e5, 0.01199), ("bump_stop", "k4", 7.2e5, 0.01200)])
+    p = {"k3": 80000.0, "k4": 145000.0}
+    jn = JointNonlinear(None, [None] * 2, names, p, True, named_terms(res, names), progress=False)
+    u0 = 0.0141
+    _fake_sizes(jn, {"bump_stop": lambda x, r: (5.0 * (1 + 10 * (x - u0)), 0.05 * (1 + ((x - u0) / 1e-3) ** 2))})
+    g0 = _settings(jn.terms[0])
+    assert g0[-1] < u0 - 1e-3, "the design changed: the truth lies inside the first grid"
+    m0 = jn.combine(jn.size(None, None), p)[0]
+    assert m0["setting"] == g0[-1]
+    m = _off_edge(jn, 0, m0, None, None, p)
+    g = _settings(jn.terms[0])
+    assert 0 < g.index(m["setting"]) < len(g) - 1
+    assert abs(m["setting"] - u0) <= (g[1] - g[0])
+    assert m["z2"] > m0["z2"]

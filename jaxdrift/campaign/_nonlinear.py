@@ -45,6 +45,12 @@ NONLINEAR_JOINT = ("bump_stop", "damper_asymmetry", "progressive_spring")
 STOP_GRID, STOP_WIDEN = 15, 0.25
 #: the finer grid of a stop's travel between the best travel's neighbours on the first grid
 FINE_GRID = 9
+#: a stop's travel grid is moved beyond its edge (from the edge, twice its span) while the best
+#: travel lies on the edge, at most ``EDGE_MOVES`` times; travels below ``MIN_TRAVEL`` m are not profiled
+EDGE_MOVES, MIN_TRAVEL = 3, 1e-4
+#: rival causes on one axle are scored by their joint z^2 less this charge per profiled setting (a
+#: stop's travel: Akaike's 2 per parameter, the profile's maximum over travels favouring it otherwise)
+SETTING_CHARGE = 2.0
 
 
 def named_terms(results, names) -> list[dict]:
@@ -66,10 +72,14 @@ def named_terms(results, names) -> list[dict]:
             u = nl.get(f"stop_u{f['parameter'][1]}")
             if f["cause"] == "bump_stop" and u is not None:
                 e["travels"].append(float(u))
-    # one cause per axle, the one most runs name (the adequacy test names one per axle too)
+    # one cause per axle (the adequacy test names one per axle too): the one most runs name, the
+    # others its rivals, between which the joint fit chooses (``choose_rivals``)
     by_axle: dict = {}
     for e in sorted(acc.values(), key=lambda e: -len(e["runs"])):
-        by_axle.setdefault(e["parameter"][1], e)
+        if e["parameter"][1] in by_axle:
+            by_axle[e["parameter"][1]].setdefault("rivals", []).append(e)
+        else:
+            by_axle[e["parameter"][1]] = e
     return sorted(by_axle.values(), key=lambda e: e["parameter"])
 
 
@@ -89,6 +99,8 @@ def _settings(term: dict) -> list:
         return [None]
     if term.get("grid") is not None:
         return [None if x is None else float(x) for x in term["grid"]]
+    if term.get("coarse") is not None:
+        return list(term["coarse"])
     u = np.asarray(term["travels"], float)
     lo, hi = float(u.min()), float(u.max())
     span = max(hi - lo, 0.1 * abs(hi), 1e-4)
@@ -109,12 +121,13 @@ def _state_of(spec, model, model_given, causes, theta):
 
 
 def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: list[dict], joint: list | None = None,
-              sizes: bool = True):
+              sizes: bool = True, only: list | None = None):
     """One run's size of each joint nonlinear term at each of its settings (``_settings``): per
     setting ``{"setting", "theta", "se", "t", "channel"}`` (``theta`` None where the run never
     reaches the setting). ``joint``: the joint size of each term (theta and setting): the other terms
     enter as nuisance columns at it, and the run's extra spring forces under the joint law (fine
-    grid, front and rear) are returned as ``extra`` when ``sizes=False`` (then without the sizes)."""
+    grid, front and rear) are returned as ``extra`` when ``sizes=False`` (then without the sizes).
+    ``only``: the indices of the terms sized (the others None, still nuisance columns)."""
     from ..diagnosis.vehicle import adequacy_tests as _tests, channel_test as _channel_test, refine_size as _refine
     from ..diagnosis.vehicle import signature_column as _column
     from ._tasks import _x64
@@ -125,6 +138,9 @@ def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: lis
     joint = joint or [None] * len(terms)
     out = []
     for i, term in enumerate(terms if sizes else []):
+        if only is not None and i not in only:
+            out.append(None)
+            continue
         others = [_cause_of(terms[k], (joint[k] or {}).get("setting")) for k in range(len(terms)) if k != i]
         for o in others:
             o.prepare(st)
@@ -257,7 +273,7 @@ class JointNonlinear:
         self.progress = progress
         self.log = log if log is not None else []
 
-    def size(self, causes, thetas, joint=None, sizes: bool = True) -> list[dict]:
+    def size(self, causes, thetas, joint=None, sizes: bool = True, only=None) -> list[dict]:
         """Every run's sizes (:func:`size_task`) at the campaign's extended model: ``causes[i]``,
         ``thetas[i]`` the shared parameters with run ``i``'s sensor effects."""
         from ._executor import map_tasks
@@ -265,10 +281,11 @@ class JointNonlinear:
         items = list(range(len(self.specs)))
         return map_tasks(self.client, _size_call, items, desc="nonlinear causes, jointly", progress=self.progress,
                          specs=self.specs, model=self.model, model_given=self.model_given, causes=causes,
-                         thetas=thetas, terms=self.terms, joint=joint, sizes=sizes)
+                         thetas=thetas, terms=self.terms, joint=joint, sizes=sizes, only=only)
 
     def combine(self, sizes: list[dict], p_joint: dict) -> list[dict]:
-        """Per term the joint size (the best setting's meta-analysis over the runs) with its interval."""
+        """Per term the joint size (the best setting's meta-analysis over the runs) with its interval
+        (None for a term not sized)."""
         from ..diagnosis.vehicle import JOINT_CHI2
         from ..diagnosis.vehicle import States
 
@@ -276,6 +293,9 @@ class JointNonlinear:
         out = []
         for i, term in enumerate(self.terms):
             settings = _settings(term)
+            if sizes and sizes[0]["sizes"][i] is None:
+                out.append(None)
+                continue
             rows = [[run["sizes"][i][k] for run in sizes] for k in range(len(settings))]
             metas = [self._meta(term, r, st) for r in rows]
             ok = [k for k, m in enumerate(metas) if m is not None]
@@ -290,7 +310,9 @@ class JointNonlinear:
             hi = max(metas[k]["theta"] + zc * metas[k]["se"] for k in near)
             shows = any(r["theta"] is not None and abs(m["theta"]) >= self.SHOW_Z * math.sqrt(r["se"] ** 2 + m["floor_se"] ** 2)
                         for r in rows[best])
-            out.append({**m, "setting": settings[best], "setting_range": [settings[min(near)], settings[max(near)]],
+            # the region's edge lies between its last setting and the next one out: the next one is said
+            lo_k, hi_k = max(min(near) - 1, 0), min(max(near) + 1, len(settings) - 1)
+            out.append({**m, "setting": settings[best], "setting_range": [settings[lo_k], settings[hi_k]],
                         "theta_interval": [lo, hi], "per_run": rows[best],
                         "confirmed": bool(math.sqrt(m["z2"]) >= self.CONFIRM_Z and shows)})
             self.log.append(f"joint {term['cause']}[{term['parameter']}]: theta {m['theta']:.5g} +- {m['se']:.3g} "
@@ -337,13 +359,70 @@ def _joint_setting(comb) -> list:
     return [None if c is None or not c["confirmed"] else {"theta": c["theta"], "setting": c["setting"]} for c in comb]
 
 
+def _off_edge(jn: "JointNonlinear", i: int, m, causes, thetas, p_joint: dict, joint=None):
+    """Term ``i``'s joint size with a stop's travel grid moved off the edge where the best travel lay
+    there (``EDGE_MOVES``): the profile's maximum is not found at a grid's end. The grid it ends on is
+    kept (``term["coarse"]``) for the later rounds."""
+    t = jn.terms[i]
+    for _ in range(EDGE_MOVES if t["cause"] == "bump_stop" else 0):
+        if m is None:
+            break
+        g = _settings(t)
+        k = g.index(m["setting"])
+        if 0 < k < len(g) - 1 or (k == 0 and g[0] <= 1.5 * MIN_TRAVEL) or len(g) < 3:
+            break
+        span = 2.0 * (g[-1] - g[0])
+        t["coarse"] = sorted({float(x) for x in np.linspace(g[k], g[k] + (span if k else -span), STOP_GRID)
+                              if x >= MIN_TRAVEL})
+        jn.log.append(f"joint {t['cause']}[{t['parameter']}]: best travel {g[k]:.4g} m on the grid's edge; "
+                      f"grid moved to {t['coarse'][0]:.4g}-{t['coarse'][-1]:.4g} m")
+        m_new = jn.combine(jn.size(causes, thetas, joint=joint, only=[i]), p_joint)[i]
+        if m_new is None:
+            break
+        m = m_new
+    return m
+
+
+def _score(term: dict, m) -> float:
+    return -math.inf if m is None else float(m["z2"]) - (SETTING_CHARGE if term["cause"] == "bump_stop" else 0.0)
+
+
+def choose_rivals(jn: "JointNonlinear", causes, thetas, p_joint: dict) -> None:
+    """Where the single runs named different causes on one axle (a progressive spring in one run, a
+    bump stop in two), each is fitted jointly (one law for all runs, the other axles' causes as
+    nuisance) and the one that explains the runs best stays (``_score``: the meta-analysis z^2, which
+    the runs' disagreement about one law deflates through the over-dispersion, less
+    ``SETTING_CHARGE`` for a stop's travel). The others are kept in ``term["rivals"]`` with their
+    score, for the report."""
+    for i, t in enumerate(list(jn.terms)):
+        rivals = t.pop("rivals", None)
+        if not rivals:
+            continue
+        scored = []
+        for c in [t] + rivals:
+            jn.terms[i] = c
+            m = jn.combine(jn.size(causes, thetas, only=[i]), p_joint)[i]
+            scored.append((_score(c, _off_edge(jn, i, m, causes, thetas, p_joint)), c))
+        scored.sort(key=lambda x: -x[0])
+        jn.terms[i] = best = scored[0][1]
+        best["rivals"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]], "score": sc}
+                          for sc, c in scored[1:]]
+        best["score"] = scored[0][0]
+        jn.log.append(f"axle {t['parameter'][1]}: " + ", ".join(f"{c['cause']} {sc:.4g}" for sc, c in scored)
+                      + f" (joint z^2 less {SETTING_CHARGE:g} per travel): {best['cause']}")
+
+
 def fit_nonlinear(jn: "JointNonlinear", fit, shared, theta, p_joint: dict, joint=None):
     """One round: every run's sizes at the fit's vehicle (the other terms at ``joint``), combined;
-    returns the combination and each run's extra forces under it."""
+    returns the combination and each run's extra forces under it. The first round (``joint`` None)
+    chooses between rival causes on one axle (``choose_rivals``)."""
     causes, thetas = run_causes(fit, shared, theta)
     for t in jn.terms:
         t.pop("grid", None)
+    if joint is None:
+        choose_rivals(jn, causes, thetas, p_joint)
     comb = jn.combine(jn.size(causes, thetas, joint=joint), p_joint)
+    comb = [_off_edge(jn, i, c, causes, thetas, p_joint, joint) for i, c in enumerate(comb)]
     # a stop's travel: the profile again on a finer grid between the best travel's neighbours on the
     # first (the other terms sized again at their own best setting, each the others' nuisance there)
     if any(t["cause"] == "bump_stop" and c is not None for t, c in zip(jn.terms, comb)):
@@ -402,6 +481,11 @@ def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict, not_carr
              "unit": c.unit, "interval": iv, "z": float(z), "overdispersion": float(m["overdispersion"]),
              "runs_showing": [r["run"] for r in shows], "runs_cannot_show": cannot, "single_run_named": named,
              "per_run": per_run, "evidence": ev}
+        for rv in term.get("rivals", []):
+            f.setdefault("rivals", []).append(rv)
+            f["evidence"] += (f" {', '.join(rv['runs'])} named a {rv['cause'].replace('_', ' ')} on this axle "
+                              f"instead; fitted jointly it explains the runs less (joint z^2 less "
+                              f"{SETTING_CHARGE:g} per travel: {rv['score']:.4g} against {term['score']:.4g}).")
         lab = f"{term['cause']}[{term['parameter']}]"
         nc = [n for n, x in zip(jn.names, not_carried or []) if lab in x]
         if nc:
