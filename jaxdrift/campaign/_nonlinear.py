@@ -405,8 +405,8 @@ def choose_rivals(jn: "JointNonlinear", causes, thetas, p_joint: dict) -> None:
             scored.append((_score(c, _off_edge(jn, i, m, causes, thetas, p_joint)), c))
         scored.sort(key=lambda x: -x[0])
         jn.terms[i] = best = scored[0][1]
-        best["rivals"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]], "score": sc}
-                          for sc, c in scored[1:]]
+        best["rivals"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]],
+                           "score": sc if math.isfinite(sc) else None} for sc, c in scored[1:]]
         best["score"] = scored[0][0]
         jn.log.append(f"axle {t['parameter'][1]}: " + ", ".join(f"{c['cause']} {sc:.4g}" for sc, c in scored)
                       + f" (joint z^2 less {SETTING_CHARGE:g} per travel): {best['cause']}")
@@ -484,8 +484,10 @@ def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict, not_carr
         for rv in term.get("rivals", []):
             f.setdefault("rivals", []).append(rv)
             f["evidence"] += (f" {', '.join(rv['runs'])} named a {rv['cause'].replace('_', ' ')} on this axle "
-                              f"instead; fitted jointly it explains the runs less (joint z^2 less "
-                              f"{SETTING_CHARGE:g} per travel: {rv['score']:.4g} against {term['score']:.4g}).")
+                              f"instead; " + ("no run could size it jointly." if rv["score"] is None else
+                                              f"fitted jointly it explains the runs less (joint z^2 less "
+                                              f"{SETTING_CHARGE:g} per travel: {rv['score']:.4g} against "
+                                              f"{term['score']:.4g})."))
         lab = f"{term['cause']}[{term['parameter']}]"
         nc = [n for n, x in zip(jn.names, not_carried or []) if lab in x]
         if nc:
