@@ -186,7 +186,7 @@ def test_rival_causes_on_one_axle_are_chosen_by_the_joint_fit():
     single runs' majority would keep the stop. Fitted jointly, the stop's sizes disagree between runs
     (over-dispersion deflates its z^2) while the spring's agree: the spring stays, the stop is kept as
     its rival with its score. With the stop's sizes agreeing and stronger, the stop stays."""
-    from jaxdrift.campaign._nonlinear import JointNonlinear, choose_rivals, named_terms
+    from jaxdrift.campaign._nonlinear import JointNonlinear, named_terms
 
     names = ["r0", "r1", "r2"]
     res = _named([("bump_stop", "k3", 3e4, 0.0057), ("bump_stop", "k3", 1.7e5, 0.055),
@@ -202,7 +202,7 @@ def test_rival_causes_on_one_axle_are_chosen_by_the_joint_fit():
         else:
             stop = lambda x, r: ((0.9, -0.25, 1.4)[r], 0.05)  # noqa: E731
         _fake_sizes(jn, {"bump_stop": stop, "progressive_spring": spring})
-        choose_rivals(jn, [None] * 3, [None] * 3, p)
+        jn.choose_rivals([None] * 3, [None] * 3, p)
         assert jn.terms[0]["cause"] == want, jn.log
         rv = jn.terms[0]["rivals"][0]
         assert rv["cause"] != want and rv["score"] < jn.terms[0]["score"]
@@ -214,7 +214,7 @@ def test_a_stop_travel_on_the_grid_edge_moves_the_grid():
     at 14.1 mm, beyond the grid spanned by the named travels. The grid moves until the best travel is
     inside it, and the joint size is the one at the peak (a grid kept at its edge reads 12.3 mm and
     the size there)."""
-    from jaxdrift.campaign._nonlinear import JointNonlinear, _off_edge, _settings, named_terms
+    from jaxdrift.campaign._nonlinear import JointNonlinear, _settings, named_terms
 
     names = ["r0", "r1"]
     res = _named([("bump_stop", "k4", 7.2e5, 0.01199), ("bump_stop", "k4", 7.2e5, 0.01200)])
@@ -226,7 +226,7 @@ def test_a_stop_travel_on_the_grid_edge_moves_the_grid():
     assert g0[-1] < u0 - 1e-3, "the design changed: the truth lies inside the first grid"
     m0 = jn.combine(jn.size(None, None), p)[0]
     assert m0["setting"] == g0[-1]
-    m = _off_edge(jn, 0, m0, None, None, p)
+    m = jn.off_edge(0, m0, None, None, p)
     g = _settings(jn.terms[0])
     assert 0 < g.index(m["setting"]) < len(g) - 1
     assert abs(m["setting"] - u0) <= (g[1] - g[0])

@@ -73,7 +73,7 @@ def named_terms(results, names) -> list[dict]:
             if f["cause"] == "bump_stop" and u is not None:
                 e["travels"].append(float(u))
     # one cause per axle (the adequacy test names one per axle too): the one most runs name, the
-    # others its rivals, between which the joint fit chooses (``choose_rivals``)
+    # others its rivals, between which the joint fit chooses (``JointNonlinear.choose_rivals``)
     by_axle: dict = {}
     for e in sorted(acc.values(), key=lambda e: -len(e["runs"])):
         if e["parameter"][1] in by_axle:
@@ -339,6 +339,53 @@ class JointNonlinear:
         return {"theta": mean, "se": se, "z2": mean * mean / (se * se), "chi2": chi2, "dof": dof,
                 "overdispersion": disp, "floor_se": fl}
 
+    def off_edge(self, i: int, m, causes, thetas, p_joint: dict, joint=None):
+        """Term ``i``'s joint size with a stop's travel grid moved off the edge where the best travel lay
+        there (``EDGE_MOVES``): the profile's maximum is not found at a grid's end. The grid it ends on is
+        kept (``term["coarse"]``) for the later rounds."""
+        t = self.terms[i]
+        for _ in range(EDGE_MOVES if t["cause"] == "bump_stop" else 0):
+            if m is None:
+                break
+            g = _settings(t)
+            k = g.index(m["setting"])
+            if 0 < k < len(g) - 1 or (k == 0 and g[0] <= 1.5 * MIN_TRAVEL) or len(g) < 3:
+                break
+            span = 2.0 * (g[-1] - g[0])
+            t["coarse"] = sorted({float(x) for x in np.linspace(g[k], g[k] + (span if k else -span), STOP_GRID)
+                                  if x >= MIN_TRAVEL})
+            self.log.append(f"joint {t['cause']}[{t['parameter']}]: best travel {g[k]:.4g} m on the grid's edge; "
+                            f"grid moved to {t['coarse'][0]:.4g}-{t['coarse'][-1]:.4g} m")
+            m_new = self.combine(self.size(causes, thetas, joint=joint, only=[i]), p_joint)[i]
+            if m_new is None:
+                break
+            m = m_new
+        return m
+
+    def choose_rivals(self, causes, thetas, p_joint: dict) -> None:
+        """Where the single runs named different causes on one axle (a progressive spring in one run, a
+        bump stop in two), each is fitted jointly (one law for all runs, the other axles' causes as
+        nuisance) and the one that explains the runs best stays (``_score``: the meta-analysis z^2, which
+        the runs' disagreement about one law deflates through the over-dispersion, less
+        ``SETTING_CHARGE`` for a stop's travel). The others are kept in ``term["rivals"]`` with their
+        score, for the report."""
+        for i, t in enumerate(list(self.terms)):
+            rivals = t.pop("rivals", None)
+            if not rivals:
+                continue
+            scored = []
+            for c in [t] + rivals:
+                self.terms[i] = c
+                m = self.combine(self.size(causes, thetas, only=[i]), p_joint)[i]
+                scored.append((_score(c, self.off_edge(i, m, causes, thetas, p_joint)), c))
+            scored.sort(key=lambda x: -x[0])
+            self.terms[i] = best = scored[0][1]
+            best["rivals"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]],
+                               "score": sc if math.isfinite(sc) else None} for sc, c in scored[1:]]
+            best["score"] = scored[0][0]
+            self.log.append(f"axle {t['parameter'][1]}: " + ", ".join(f"{c['cause']} {sc:.4g}" for sc, c in scored)
+                            + f" (joint z^2 less {SETTING_CHARGE:g} per travel): {best['cause']}")
+
 
 def _size_call(i, *, specs, causes, thetas, **kw):
     return size_task(specs[i], causes=causes[i], theta=thetas[i], **kw)
@@ -359,70 +406,21 @@ def _joint_setting(comb) -> list:
     return [None if c is None or not c["confirmed"] else {"theta": c["theta"], "setting": c["setting"]} for c in comb]
 
 
-def _off_edge(jn: "JointNonlinear", i: int, m, causes, thetas, p_joint: dict, joint=None):
-    """Term ``i``'s joint size with a stop's travel grid moved off the edge where the best travel lay
-    there (``EDGE_MOVES``): the profile's maximum is not found at a grid's end. The grid it ends on is
-    kept (``term["coarse"]``) for the later rounds."""
-    t = jn.terms[i]
-    for _ in range(EDGE_MOVES if t["cause"] == "bump_stop" else 0):
-        if m is None:
-            break
-        g = _settings(t)
-        k = g.index(m["setting"])
-        if 0 < k < len(g) - 1 or (k == 0 and g[0] <= 1.5 * MIN_TRAVEL) or len(g) < 3:
-            break
-        span = 2.0 * (g[-1] - g[0])
-        t["coarse"] = sorted({float(x) for x in np.linspace(g[k], g[k] + (span if k else -span), STOP_GRID)
-                              if x >= MIN_TRAVEL})
-        jn.log.append(f"joint {t['cause']}[{t['parameter']}]: best travel {g[k]:.4g} m on the grid's edge; "
-                      f"grid moved to {t['coarse'][0]:.4g}-{t['coarse'][-1]:.4g} m")
-        m_new = jn.combine(jn.size(causes, thetas, joint=joint, only=[i]), p_joint)[i]
-        if m_new is None:
-            break
-        m = m_new
-    return m
-
-
 def _score(term: dict, m) -> float:
     return -math.inf if m is None else float(m["z2"]) - (SETTING_CHARGE if term["cause"] == "bump_stop" else 0.0)
-
-
-def choose_rivals(jn: "JointNonlinear", causes, thetas, p_joint: dict) -> None:
-    """Where the single runs named different causes on one axle (a progressive spring in one run, a
-    bump stop in two), each is fitted jointly (one law for all runs, the other axles' causes as
-    nuisance) and the one that explains the runs best stays (``_score``: the meta-analysis z^2, which
-    the runs' disagreement about one law deflates through the over-dispersion, less
-    ``SETTING_CHARGE`` for a stop's travel). The others are kept in ``term["rivals"]`` with their
-    score, for the report."""
-    for i, t in enumerate(list(jn.terms)):
-        rivals = t.pop("rivals", None)
-        if not rivals:
-            continue
-        scored = []
-        for c in [t] + rivals:
-            jn.terms[i] = c
-            m = jn.combine(jn.size(causes, thetas, only=[i]), p_joint)[i]
-            scored.append((_score(c, _off_edge(jn, i, m, causes, thetas, p_joint)), c))
-        scored.sort(key=lambda x: -x[0])
-        jn.terms[i] = best = scored[0][1]
-        best["rivals"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]],
-                           "score": sc if math.isfinite(sc) else None} for sc, c in scored[1:]]
-        best["score"] = scored[0][0]
-        jn.log.append(f"axle {t['parameter'][1]}: " + ", ".join(f"{c['cause']} {sc:.4g}" for sc, c in scored)
-                      + f" (joint z^2 less {SETTING_CHARGE:g} per travel): {best['cause']}")
 
 
 def fit_nonlinear(jn: "JointNonlinear", fit, shared, theta, p_joint: dict, joint=None):
     """One round: every run's sizes at the fit's vehicle (the other terms at ``joint``), combined;
     returns the combination and each run's extra forces under it. The first round (``joint`` None)
-    chooses between rival causes on one axle (``choose_rivals``)."""
+    chooses between rival causes on one axle (``JointNonlinear.choose_rivals``)."""
     causes, thetas = run_causes(fit, shared, theta)
     for t in jn.terms:
         t.pop("grid", None)
     if joint is None:
-        choose_rivals(jn, causes, thetas, p_joint)
+        jn.choose_rivals(causes, thetas, p_joint)
     comb = jn.combine(jn.size(causes, thetas, joint=joint), p_joint)
-    comb = [_off_edge(jn, i, c, causes, thetas, p_joint, joint) for i, c in enumerate(comb)]
+    comb = [jn.off_edge(i, c, causes, thetas, p_joint, joint) for i, c in enumerate(comb)]
     # a stop's travel: the profile again on a finer grid between the best travel's neighbours on the
     # first (the other terms sized again at their own best setting, each the others' nuisance there)
     if any(t["cause"] == "bump_stop" and c is not None for t, c in zip(jn.terms, comb)):
