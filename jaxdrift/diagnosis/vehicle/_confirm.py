@@ -158,8 +158,8 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
     """Drop the causes that do not improve the model on the whole run and on each half, explain
     too small a share of their channel's residual, or are too small to matter (:func:`failure`;
     weakest first, refitting the rest each time), and the parameter errors that may stand in for a
-    law the run shows but cannot size (``stand_in``, from :func:`stand_in_targets`: a progressive
-    spring read as k3 x 1.50 beside a model-form finding on the front spring's travel is not a
+    law the run shows but cannot size (``stand_in``, from :func:`stand_in_targets`: a front bump
+    stop read as k3 x 1.50 beside a model-form finding on the front spring's travel is not a
     stiffer spring). Returns the new selection and the dropped causes with their numbers."""
     stand_in = stand_in or {}
     fit = sel.fit

@@ -423,8 +423,9 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
             s = imp["stand_in"]
             reasons[c] = (f"not confirmed, left out of the extended model: the run shows the {s['axle']} suspension's "
                           f"law is not linear (the adequacy test of the fit that selected it: the residual depends on "
-                          f"{s['state']}, z = {s['z']:.1f}, which no cause in its range takes) but cannot size it; a linear change of {c.target} is what such a law looks like "
-                          f"on a linear model, so it may stand in for it")
+                          f"{s['state']}, z = {s['z']:.1f}, which no cause in its range takes) but cannot size it; "
+                          f"a linear change of {c.target} is what such a law looks like on a linear model, so it "
+                          f"may stand in for it")
         elif why == "margin":
             reasons[c] = (f"not confirmed, left out of the extended model: its size is within {imp['margin']:.3g} "
                           f"({c.kind.unit}) of no effect, a difference no engineer would act on")
