@@ -204,7 +204,7 @@ def test_rival_causes_on_one_axle_are_chosen_by_the_joint_fit():
         _fake_sizes(jn, {"bump_stop": stop, "progressive_spring": spring})
         jn.choose_rivals([None] * 3, [None] * 3, p)
         assert jn.terms[0]["cause"] == want, jn.log
-        rv = jn.terms[0]["rivals"][0]
+        rv = jn.terms[0]["rival_scores"][0]
         assert rv["cause"] != want and rv["score"] < jn.terms[0]["score"]
         assert rv["runs"] == (["r2"] if want == "bump_stop" else ["r0", "r1"])
 

@@ -129,10 +129,10 @@ def main(argv=None):
     if a.json:
         import jaxdrift
 
-        here = os.path.dirname(os.path.abspath(__file__))
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=here, capture_output=True, text=True).stdout.strip()
+        from benchmarks.validation.campaign_false_alarms import _commit
+
         with open(a.json, "w") as fh:
-            json.dump({"what": "campaign_nonlinear", "seed": a.seed, "commit": commit or None,
+            json.dump({"what": "campaign_nonlinear", "seed": a.seed, "commit": _commit() or None,
                        "max_runs": a.max_runs, "machine": platform.platform(),
                        "python": platform.python_version(), "jaxdrift": jaxdrift.__version__,
                        "summary": summ, "campaigns": res}, fh, indent=1)

@@ -367,8 +367,8 @@ class JointNonlinear:
         bump stop in two), each is fitted jointly (one law for all runs, the other axles' causes as
         nuisance) and the one that explains the runs best stays (``_score``: the meta-analysis z^2, which
         the runs' disagreement about one law deflates through the over-dispersion, less
-        ``SETTING_CHARGE`` for a stop's travel). The others are kept in ``term["rivals"]`` with their
-        score, for the report."""
+        ``SETTING_CHARGE`` for a stop's travel). The others go into the report with their score
+        (``term["rival_scores"]``; ``term["rivals"]`` holds the candidates until they are chosen)."""
         for i, t in enumerate(list(self.terms)):
             rivals = t.pop("rivals", None)
             if not rivals:
@@ -380,8 +380,8 @@ class JointNonlinear:
                 scored.append((_score(c, self.off_edge(i, m, causes, thetas, p_joint)), c))
             scored.sort(key=lambda x: -x[0])
             self.terms[i] = best = scored[0][1]
-            best["rivals"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]],
-                               "score": sc if math.isfinite(sc) else None} for sc, c in scored[1:]]
+            best["rival_scores"] = [{"cause": c["cause"], "runs": [r["run"] for r in c["runs"]],
+                                     "score": sc if math.isfinite(sc) else None} for sc, c in scored[1:]]
             best["score"] = scored[0][0]
             self.log.append(f"axle {t['parameter'][1]}: " + ", ".join(f"{c['cause']} {sc:.4g}" for sc, c in scored)
                             + f" (joint z^2 less {SETTING_CHARGE:g} per travel): {best['cause']}")
@@ -479,8 +479,9 @@ def nonlinear_findings(jn: "JointNonlinear", comb: list, p_joint: dict, not_carr
              "unit": c.unit, "interval": iv, "z": float(z), "overdispersion": float(m["overdispersion"]),
              "runs_showing": [r["run"] for r in shows], "runs_cannot_show": cannot, "single_run_named": named,
              "per_run": per_run, "evidence": ev}
-        for rv in term.get("rivals", []):
-            f.setdefault("rivals", []).append(rv)
+        if term.get("rival_scores"):
+            f["rivals"] = list(term["rival_scores"])
+        for rv in term.get("rival_scores", []):
             f["evidence"] += (f" {', '.join(rv['runs'])} named a {rv['cause'].replace('_', ' ')} on this axle "
                               f"instead; " + ("no run could size it jointly." if rv["score"] is None else
                                               f"fitted jointly it explains the runs less (joint z^2 less "
