@@ -83,7 +83,7 @@ import tempfile
 import time
 import traceback
 from collections import defaultdict
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
@@ -131,6 +131,12 @@ WORLDS = [
     World("real/mdf", "real", "real", 0, 0, 0, {"reader": "mdf"}),
 ]
 BY_NAME = {w.name: w for w in WORLDS}
+
+
+def world_of(name: str) -> World:
+    """The world of a name; ``NAME@SEED`` is that generated world drawn at another seed (``--seed``)."""
+    base, _, seed = name.partition("@")
+    return replace(BY_NAME[base], name=name, seed=int(seed)) if seed else BY_NAME[base]
 
 
 # ----------------------------------------------------------------------------------- cases
@@ -216,7 +222,7 @@ def run_case(world_name: str, case: dict) -> dict:
     """Generate, diagnose and describe one case: the uniform record ``score_world`` reads."""
     import numpy as np
 
-    world = BY_NAME[world_name]
+    world = world_of(world_name)
     rec = {"world": world_name, "index": case["index"]}
     tmp = tempfile.mkdtemp(prefix="scorecard-")
     t0 = time.time()
@@ -701,6 +707,9 @@ def main(argv=None) -> int:
     ap.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     ap.add_argument("--cache", default=None, help="per-run cache folder (default out/scorecard-cache/<commit>)")
     ap.add_argument("--json", default=None, help="write the card here")
+    ap.add_argument("--seed", type=int, default=None,
+                    help="draw the generated worlds at this seed instead of their own (a fresh draw no rule was "
+                         "tuned on; named WORLD@SEED, real worlds left out; no baseline to check against)")
     a = ap.parse_args(argv)
     worlds = WORLDS
     if a.worlds:
@@ -708,6 +717,10 @@ def main(argv=None) -> int:
         worlds = [w for w in WORLDS if any(w.name == x or w.name.startswith(x) for x in pre)]
         if not worlds:
             ap.error(f"--worlds: none of {pre}; the worlds are {', '.join(BY_NAME)}")
+    if a.seed is not None and a.check:
+        ap.error("--check compares with the baseline at the worlds' own seeds: not with --seed")
+    if a.seed is not None:
+        worlds = [replace(w, name=f"{w.name}@{a.seed}", seed=a.seed) for w in worlds if w.kind != "real"]
     commit = _commit() + ("+dirty" if _dirty() else "")
     cache = a.cache or str(ROOT / "out" / "scorecard-cache" / commit)
     t0 = time.time()

@@ -69,9 +69,9 @@ from ._common import (
     fmt,
 )
 from ._gyro import (cluster_cov, convention_terms, decay_profile, half_rate_fit, reference_fit, reference_noise_var,
-                    reml_drift, rw_cov, gls_agrees, gyro_halves, test_se, static_segment, without_decay)
+                    drift_tests, decay_tail, gls_agrees, gyro_halves, test_se, static_segment, without_decay)
 from ._noise import allan, estimate_white_noise, white_noise_recorded
-from ._alignment import alignment_step, clock_settled
+from ._alignment import alignment_step, clock_offset_left, clock_settled
 from ._vibration import vibration_step
 from ._records import Comparison, Diagnosis, GyroModel, GyroNoise, Said, Vibration
 from ._report import assemble_report
@@ -122,7 +122,7 @@ def diagnose_records(run, positions=None) -> Diagnosis:
     if n_ref >= 2:
         al = alignment_step(run)
         run, alignment, said = al.run, al.alignment, said + al.said
-        comp, noise = reference_step(run, n_ref, noise, vib, clock_settled(alignment))
+        comp, noise = reference_step(run, n_ref, noise, vib, clock_offset_left(alignment))
     else:
         comp = static_segment_step(run, n_ref, noise)
         still = None
@@ -193,7 +193,7 @@ def gyro_noise_step(run) -> tuple[GyroNoise, Said]:
 # --------------------------------------------------------------------------- reference attitude
 
 
-def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=True) -> tuple[Comparison, GyroNoise]:
+def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_left=0.0) -> tuple[Comparison, GyroNoise]:
     """Biases, scales and bias drift from two or more reference rows; attitude error and gain. Also
     the gyro noise as the reference tells it (:func:`._realworld.noise_kind_step`)."""
     t, dt, w, n = run["t"], run["dt"], run["w"], len(run["t"])
@@ -215,6 +215,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
     var_rate, sample_var, fit_ref = noise.var_rate, noise.sigma_axis**2, reference_fit
     # the reference's noise: weighed (GLS) on a settled clock where it shows, else telescoped (``thinned``)
     one = ([np.zeros(len(anchors) - 1, int)] * 3, anchors, sample_var)
+    settled = clock_settled(offset_left, float(np.median(np.diff(anchors))) * dt)
     fit_w = fit_ref(run, var_rate, *one, use=use) if settled else None
     ref_var = reference_noise_var(fit_w) if settled else 0.0
     if ref_var > 0 and not gls_agrees(fit_w, reference_fit(run, var_rate, *one, use=use, ref_var=ref_var)):
@@ -283,9 +284,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
         held = {c: True for c in range(3) if c != vertical_axis(q_ref)}
         fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
                              hold_bias=_bias_idx(fit0, held))
-    elif not use.all():
-        for i in sorted(degenerate(fit0, tol=1e-3, share=0.5)):
-            c = int(np.searchsorted(fit0["offs"], i, side="right") - 1)
+    elif not use.all():  # judged on constant biases: a segment inside a left-out span is no axis's blindness
+        fit_c = fit_ref(run, var_rate, [np.zeros(n_int, int)] * 3, anchors, sample_var, use=use, hold_scale=hold)
+        for i in sorted(degenerate(fit_c, tol=1e-3, share=0.5)):
+            c = int(np.searchsorted(fit_c["offs"], i, side="right") - 1)
             if c < 3:
                 held[c] = True
         if held:
@@ -295,6 +297,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
     hb = {"hold_bias": _bias_idx(fit0, held)} if held else {}
     decay, fit_d = decay_profile(fit_ref, fit0, run, anchors, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, **hb)
+    conv = next((sp for sp in ref_spans if sp.get("kind") == "converges"), None)
+    if not decay and conv:  # the tail of the convergence the consistency check left out the start of
+        decay, fit_d = decay_tail(fit_ref, (conv["tau_s"], conv["frame"]), run, var_rate, [int_seg] * 3, anchors,
+                                  sample_var, use=use, hold_scale=hold, **hb)
     if decay:
         fit_ref, fit0 = partial(fit_ref, decay=decay), fit_d
         notes.append(f"the reference converges like an estimator starting {fmt(math.degrees(np.linalg.norm(fit0['decay']['amplitude_rad'])))} "
@@ -302,7 +308,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
                      "decay is fitted beside the gyro's effects")
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
     if M >= 4:
-        drift, drift_notes = _drift_tests(dt, fit0, anchors, int_seg, M, use)
+        drift, drift_notes = drift_tests(dt, fit0, anchors, int_seg, M, use)
         notes += drift_notes
     else:
         drift = {}
@@ -338,49 +344,6 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, settled=
 
 def _bias_idx(fit, channels):
     return tuple(i for c in channels for i in range(fit["offs"][c], fit["offs"][c + 1]))
-
-
-def _drift_tests(dt, fit0, anchors, int_seg, M, use):
-    """REML test of a bias random walk on the M segment biases of each channel: ``({channel:
-    result}, notes)``.
-
-    A random walk is named only where it explains the segment biases better than a scatter of
-    equal size that does not wander (each segment off by its own amount, the same REML with the
-    identity for the walk's covariance). Both have one parameter more than a constant bias, so
-    their likelihoods compare directly. Segment biases that jump and come back are the reference's
-    trouble in those segments (an onboard estimator's corrections, a reset the consistency check
-    did not cut out), not a gyro's bias wandering: on a PX4 flight log with 20 Hz attitude the
-    walk read 0.116 rad/s/sqrt(s), from segments at -325 and -463 mrad/s between ones near 0."""
-    infl = max(1.0, fit0["chi2"] / fit0["dof"])
-    drift, notes = {}, []
-    bounds_rows = np.concatenate([anchors[:-1][np.searchsorted(int_seg, np.arange(M))], [anchors[-1]]])
-    bounds = (bounds_rows - 0) * dt  # time since the first row
-    S_rw = rw_cov(bounds)
-    bad = degenerate(fit0)
-    for c in range(3):
-        sl = slice(fit0["offs"][c], fit0["offs"][c + 1])
-        if any(i in bad for i in range(sl.start, sl.stop)):
-            continue  # a segment bias the reference cannot determine: no drift test
-        b = fit0["theta"][sl]
-        V = fit0["cov"][sl, sl] * infl
-        d = reml_drift(b, V, S_rw)
-        # a constant bias that is significant may be the mean of a wandering one: then the
-        # choice is between two models of the same size and a lower threshold applies
-        Vi = np.linalg.pinv(V)
-        one = np.ones(len(b))
-        z_const = abs(one @ Vi @ b) / math.sqrt(max(one @ Vi @ one, 1e-300))
-        thr = DRIFT_LR_GIVEN_BIAS if z_const > Z_SIGNIFICANT else DRIFT_LR
-        d["z_const"] = float(z_const)
-        if d["lr"] > thr and d["K"] > DRIFT_FLOOR:
-            scatter = reml_drift(b, V, np.eye(len(b)) * float(np.mean(np.diff(bounds))))
-            if scatter["lr"] >= d["lr"]:
-                notes.append(f"the {CHANNELS[c]} bias differs from segment to segment beyond its errors (REML "
-                             f"likelihood ratio {fmt(scatter['lr'])} against a constant bias) without wandering like "
-                             f"a random walk ({fmt(d['lr'])}): the reference is off in some segments; no bias drift "
-                             f"named")
-                continue
-            drift[c] = d
-    return drift, notes
 
 
 def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, ref_spans, held):
@@ -469,7 +432,7 @@ def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, 
                            "its axis is nearly the global axis on which the reference is "
                            "inconsistent: the rest of the reference hardly sees it (held at 0 while fitting the others)")
             continue
-        if offs[c] in bad or not b0_se > 0 or not math.isfinite(b0):
+        if (offs[c] in bad and c not in drift) or not b0_se > 0 or not math.isfinite(b0):
             undetermined += Said.undetermined(GYRO_BIAS.name, ch, _degenerate_reason(fit, offs[c]) + why_lost)
             continue
         if c in drift:
@@ -478,7 +441,8 @@ def _reference_findings(run, fit, infl, drift, seg_final, anchors, M, vibrates, 
                 f"the {ch} bias over {M} segments wanders like a random walk of intensity {fmt(d['K'])} "
                 f"rad/s/sqrt(s) (REML likelihood ratio {fmt(d['lr'])} against a constant bias)",
                 math.sqrt(max(d["lr"], 0.0)), channel=ch))
-            bias_path[:, c] = th[sl][seg_final[c][rows_int]]
+            k = np.nonzero(d["segments"])[0]  # a segment the reference did not see: its neighbours' level
+            bias_path[:, c] = np.interp(np.arange(M), k, th[sl][k])[seg_final[c][rows_int]]
             corrections[ch] = replace(corrections[ch], bias_drift=float(d["K"]))
         bias_se[c] = b0_half / z95
         bias_fit[ch] = (float(b0), float(b0_half))
