@@ -12,42 +12,14 @@ error decaying from 5 deg (no white noise at all): neither may name a cause that
 
 import math
 
-import numpy as np
-from scipy.spatial.transform import Rotation
-
-from jaxdrift.diagnosis.attitude import diagnose_attitude
-from jaxdrift.models._quaternion import integrate_rates_np
+from _attitude_synth import diagnose_synthetic
 
 FS, EVERY, T = 400.0, 8, 90.0
 
 
-def _rates(t):
-    return np.column_stack([0.3 * np.sin(2 * np.pi * 0.9 * t + 0.3), 0.25 * np.sin(2 * np.pi * 1.3 * t),
-                            0.2 * np.sin(2 * np.pi * 0.04 * t) + 0.05 * np.sin(2 * np.pi * 2.1 * t + 1.0)])
-
-
 def _diagnose(seed, bias=(0.0, 0.0, 0.0), sigma_ref=1.5e-3, offset_s=0.0, converge_deg=0.0, tau_s=10.0):
-    rng = np.random.default_rng(seed)
-    dt = 1.0 / FS
-    t = np.arange(0.0, T, dt)
-    # the true attitude on a fine grid, so that a reference late by offset_s is read between samples
-    k = 8
-    tf = np.arange(0.0, T + 0.2, dt / k)
-    qf = integrate_rates_np(np.array([1.0, 0.0, 0.0, 0.0]), _rates(tf), dt / k)
-    w_meas = _rates(t) + np.asarray(bias) + rng.normal(0.0, 1e-5 / math.sqrt(dt), (len(t), 3))
-    rows = np.arange(0, len(t), EVERY)
-    src = np.clip(np.round((t[rows] - offset_s) / (dt / k)).astype(int), 0, len(tf) - 1)
-    r = Rotation.from_quat(qf[src][:, [1, 2, 3, 0]])
-    err = sigma_ref * rng.standard_normal((len(rows), 3))
-    if converge_deg:
-        d = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
-        err += np.outer(np.exp(-t[rows] / tau_s), d) * math.radians(converge_deg)
-    x = (r * Rotation.from_rotvec(err)).as_quat()
-    q_ref = np.full((len(t), 4), np.nan)
-    q_ref[rows] = x[:, [3, 0, 1, 2]]
-    run = {"path": "synthetic", "t": t, "dt": dt, "w": w_meas, "q_ref": q_ref, "acc": None, "extra_columns": [],
-           "quantisation": 0.0, "acc_quantisation": 0.0, "warnings": [], "info": {}}
-    return diagnose_attitude(run)[0]
+    return diagnose_synthetic(seed, FS, EVERY, T, bias=bias, sigma_ref=sigma_ref, offset_s=offset_s,
+                              converge_deg=converge_deg, tau_s=tau_s)
 
 
 def _by(rep, cause):

@@ -26,10 +26,8 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_matrix_np,
 )
-from ._common import CHANNELS, DRIFT_FLOOR, DRIFT_LR, DRIFT_LR_GIVEN_BIAS, Z_SIGNIFICANT, fmt
-from ._realworld import degenerate
 
-__all__ = ["drift_tests", "decay_tail", "reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
+__all__ = ["decay_tail", "reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
 
 
 def _interval_sums(X, starts, ends):
@@ -456,6 +454,8 @@ def static_segment(w, dt, sigma):
 #: a scale is named only where the run's two halves, fitted apart, agree within this many standard
 #: errors of their difference
 HALVES_Z = 3.0
+#: ... or within this share of the effect (a bias, or a scale's distance from 1)
+HALVES_REL = 0.05
 
 
 def gyro_halves(fit_fn, use, *args, **kw):
@@ -476,7 +476,10 @@ def gyro_halves(fit_fn, use, *args, **kw):
             [("bias", c, offs[c]) for c in range(3) if offs[c + 1] - offs[c] == 1]:
         a, b = (float(f["theta"][i]) for f in fits)
         v = sum(max(float(f["cov"][i, i]), 0.0) * max(1.0, f["chi2"] / f["dof"]) for f in fits)
-        out[(kind, c)] = (abs(a - b) <= HALVES_Z * math.sqrt(v), a, b)
+        # or within HALVES_REL of the effect: a noise-free gyro under a reference weighed row by row
+        # has errors of 1e-10 rad/s, and halves of -2.0e-5 and -2.0e-5 rad/s then read as "no constant bias"
+        size = max(abs(a), abs(b)) if kind == "bias" else max(abs(a - 1.0), abs(b - 1.0))
+        out[(kind, c)] = (abs(a - b) <= max(HALVES_Z * math.sqrt(v), HALVES_REL * size), a, b)
     return out
 
 
@@ -591,59 +594,14 @@ def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, **kw):
     decay still under way after the stretch left out reads as a bias that fades: a drift named on a
     clean gyro. Returns ``(decay, the fit with ``segs`` and the decay)`` or ``(None, None)``."""
     const = [np.zeros(len(anchors) - 1, int)] * 3
-    f0 = fit_ref(run, noise_var, const, anchors, *args, **kw)
-    f1 = fit_ref(run, noise_var, const, anchors, *args, decay=decay, **kw)
+    offs = np.cumsum([0] + [int(s.max()) + 1 for s in segs])  # a held bias: its channel's constant one
+    kc = {**kw, "hold_bias": tuple(sorted({int(np.searchsorted(offs, i, side="right") - 1) for i in kw.get("hold_bias", ())}))}
+    f0 = fit_ref(run, noise_var, const, anchors, *args, **kc)
+    f1 = fit_ref(run, noise_var, const, anchors, *args, decay=decay, **kc)
     gain = (f0["chi2"] - f1["chi2"]) / max(f1["chi2"] / max(f1["dof"] - 3, 1), 1e-300)
     if gain < DECAY_CHI2 or np.linalg.norm(f1["decay"]["amplitude_rad"]) > DECAY_MAX_RAD:
         return None, None
     return decay, fit_ref(run, noise_var, segs, anchors, *args, decay=decay, **kw)
-
-
-def drift_tests(dt, fit0, anchors, int_seg, M, use):
-    """REML test of a bias random walk on the M segment biases of each channel: ``({channel:
-    result}, notes)``.
-
-    A random walk is named only where it explains the segment biases better than a scatter of
-    equal size that does not wander (each segment off by its own amount, the same REML with the
-    identity for the walk's covariance). Both have one parameter more than a constant bias, so
-    their likelihoods compare directly. Segment biases that jump and come back are the reference's
-    trouble in those segments (an onboard estimator's corrections, a reset the consistency check
-    did not cut out), not a gyro's bias wandering: on a PX4 flight log with 20 Hz attitude the
-    walk read 0.116 rad/s/sqrt(s), from segments at -325 and -463 mrad/s between ones near 0."""
-    infl = max(1.0, fit0["chi2"] / fit0["dof"])
-    drift, notes = {}, []
-    bounds_rows = np.concatenate([anchors[:-1][np.searchsorted(int_seg, np.arange(M))], [anchors[-1]]])
-    bounds = (bounds_rows - 0) * dt  # time since the first row
-    S_rw = rw_cov(bounds)
-    bad = degenerate(fit0)
-    for c in range(3):
-        # the segments the reference determines (one inside a span left out tells nothing): the walk's
-        # covariance over them is its own rows and columns
-        ok = np.array([i not in bad for i in range(fit0["offs"][c], fit0["offs"][c + 1])])
-        if ok.sum() < 4:
-            continue
-        sel = fit0["offs"][c] + np.nonzero(ok)[0]
-        b = fit0["theta"][sel]
-        V = fit0["cov"][np.ix_(sel, sel)] * infl
-        d = reml_drift(b, V, S_rw[np.ix_(ok, ok)])
-        d["segments"] = ok
-        # a constant bias that is significant may be the mean of a wandering one: then the
-        # choice is between two models of the same size and a lower threshold applies
-        Vi = np.linalg.pinv(V)
-        one = np.ones(len(b))
-        z_const = abs(one @ Vi @ b) / math.sqrt(max(one @ Vi @ one, 1e-300))
-        thr = DRIFT_LR_GIVEN_BIAS if z_const > Z_SIGNIFICANT else DRIFT_LR
-        d["z_const"] = float(z_const)
-        if d["lr"] > thr and d["K"] > DRIFT_FLOOR:
-            scatter = reml_drift(b, V, np.eye(len(b)) * float(np.mean(np.diff(bounds))))
-            if scatter["lr"] >= d["lr"]:
-                notes.append(f"the {CHANNELS[c]} bias differs from segment to segment beyond its errors (REML "
-                             f"likelihood ratio {fmt(scatter['lr'])} against a constant bias) without wandering like "
-                             f"a random walk ({fmt(d['lr'])}): the reference is off in some segments; no bias drift "
-                             f"named")
-                continue
-            drift[c] = d
-    return drift, notes
 
 
 def without_decay(run, decay: dict, a0: int):

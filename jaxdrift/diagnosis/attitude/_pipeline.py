@@ -59,9 +59,6 @@ from ._realworld import (
 from ._common import (
     BIAS_FLOOR,
     CHANNELS,
-    DRIFT_FLOOR,
-    DRIFT_LR,
-    DRIFT_LR_GIVEN_BIAS,
     DRIFT_OFF_DEG,
     SCALE_FLOOR,
     Z_COLOURED,
@@ -69,7 +66,8 @@ from ._common import (
     fmt,
 )
 from ._gyro import (cluster_cov, convention_terms, decay_profile, half_rate_fit, reference_fit, reference_noise_var,
-                    drift_tests, decay_tail, gls_agrees, gyro_halves, test_se, static_segment, without_decay)
+                    decay_tail, gls_agrees, gyro_halves, test_se, static_segment, without_decay)
+from ._drift import drift_tests
 from ._noise import allan, estimate_white_noise, white_noise_recorded
 from ._alignment import alignment_step, clock_offset_left, clock_settled
 from ._vibration import vibration_step
