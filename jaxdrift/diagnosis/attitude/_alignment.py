@@ -298,8 +298,9 @@ def alignment_step(run) -> Alignment:
         tau_se = _jackknife_se(loo)
     else:
         taus = np.array([_offset(integral, ta[b], tb[b], wb[b], dt, reach) for b in blocks])
-        # a block that tells no offset (a body standing still: its best offset lies on the search's edge)
-        # is left out of the scatter, and the held-out rule judges it by the others' mean
+        # a block that tells no offset (its reference turns slower than MIN_MOTION_RAD_S, or its best
+        # offset lies on the search's edge) is left out of the scatter; the held-out rule judges it by
+        # the others' mean
         tells = np.array([abs(x) < reach * (1 - 1e-6) and float(np.sqrt(np.mean(np.sum(wb[b] ** 2, 1)))) >= MIN_MOTION_RAD_S
                           for x, b in zip(taus, blocks)])
         if MIN_TELLING_BLOCKS <= tells.sum() < N_BLOCKS:
