@@ -720,7 +720,7 @@ def main(argv=None) -> int:
     if a.seed is not None and a.check:
         ap.error("--check compares with the baseline at the worlds' own seeds: not with --seed")
     if a.seed is not None:
-        worlds = [replace(w, name=f"{w.name}@{a.seed}", seed=a.seed) for w in worlds if w.kind != "real"]
+        worlds = [world_of(f"{w.name}@{a.seed}") for w in worlds if w.kind != "real"]
     commit = _commit() + ("+dirty" if _dirty() else "")
     cache = a.cache or str(ROOT / "out" / "scorecard-cache" / commit)
     t0 = time.time()

@@ -265,6 +265,11 @@ def _jackknife_se(loo) -> float:
     return float(math.sqrt((B - 1) / B * np.sum((loo - loo.mean()) ** 2)))
 
 
+def _rms_rate(wb) -> float:
+    """RMS magnitude [rad/s] of the reference's rates over spans (rows of ``wb``)."""
+    return float(np.sqrt(np.mean(np.sum(wb**2, 1))))
+
+
 def alignment_step(run) -> Alignment:
     """Estimate (and where significant, apply) the reference's clock offset and frame rotation: the
     :class:`._records.Alignment` (``alignment`` the report's ``run.reference_alignment``; ``run`` a
@@ -279,7 +284,7 @@ def alignment_step(run) -> Alignment:
     # rates over at least SPAN_S (or one reference step): the reference's noise divided by the span
     span = max(1, int(round(SPAN_S / float(np.median(np.diff(tq))))))
     ta, tb, wb = _ref_rates(tq, q, span, max(1, span // SPAN_STRIDE))
-    if len(ta) < MIN_SPANS or float(np.sqrt(np.mean(np.sum(wb**2, 1)))) < MIN_MOTION_RAD_S:
+    if len(ta) < MIN_SPANS or _rms_rate(wb) < MIN_MOTION_RAD_S:
         return Alignment(None, run)
     integral = _gyro_integral(run["t"], w)
     # a GNSS heading at 1 Hz lags its gyro by a few tenths of a second: the search spans half a
@@ -301,8 +306,7 @@ def alignment_step(run) -> Alignment:
         # a block that tells no offset (its reference turns slower than MIN_MOTION_RAD_S, or its best
         # offset lies on the search's edge) is left out of the scatter; the held-out rule judges it by
         # the others' mean
-        tells = np.array([abs(x) < reach * (1 - 1e-6) and float(np.sqrt(np.mean(np.sum(wb[b] ** 2, 1)))) >= MIN_MOTION_RAD_S
-                          for x, b in zip(taus, blocks)])
+        tells = np.array([abs(x) < reach * (1 - 1e-6) and _rms_rate(wb[b]) >= MIN_MOTION_RAD_S for x, b in zip(taus, blocks)])
         if MIN_TELLING_BLOCKS <= tells.sum() < N_BLOCKS:
             taus = np.where(tells, taus, np.mean(taus[tells]))
         k = int(tells.sum()) if tells.sum() >= MIN_TELLING_BLOCKS else N_BLOCKS

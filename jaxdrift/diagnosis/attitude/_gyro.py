@@ -281,10 +281,10 @@ def reference_noise_var(fit) -> float:
         pair = use[:-1, a] & use[1:, a]
         if pair.sum() < 10:
             continue
-        v1.append(mad_sigma(r[:-1, a][pair]) ** 2)
-        v2.append(mad_sigma(r[:-1, a][pair] + r[1:, a][pair]) ** 2)
-        n += int(pair.sum())
         x, y = r[:-1, a][pair], r[1:, a][pair]
+        v1.append(mad_sigma(x) ** 2)
+        v2.append(mad_sigma(x + y) ** 2)
+        n += int(pair.sum())
         # by ranks: an optical marker's few jumps (one row off and back) are opposite neighbours too
         lag1 += float(stats.spearmanr(x, y)[0]) * int(pair.sum()) if np.ptp(x) > 0 and np.ptp(y) > 0 else 0.0
     if not v1:
@@ -534,6 +534,12 @@ DECAY_START_RATIO = 2.0
 DECAY_TAUS = 14
 
 
+def _decay_gain(without, with_decay) -> float:
+    """The chi-square a decay gains, in units of the residual level left with it (the weights'
+    noise level may be off either way)."""
+    return (without["chi2"] - with_decay["chi2"]) / max(with_decay["chi2"] / max(with_decay["dof"] - 3, 1), 1e-300)
+
+
 def decay_profile(fit_ref, fit0, run, anchors, *args, **kw):
     """The reference as an estimator still converging: ``(tau, frame)`` of the decay
     ``v exp(-(t - t0) / tau)`` of its error that :func:`reference_fit` (``decay=``) fits best beside
@@ -580,26 +586,24 @@ def decay_profile(fit_ref, fit0, run, anchors, *args, **kw):
         return None, None
     f = fit_ref(run, *args, decay=decay, **kw)
     # in units of the residual level left with the decay (the weights' noise level may be off either way)
-    gain = (fit0["chi2"] - f["chi2"]) / max(f["chi2"] / max(f["dof"] - 3, 1), 1e-300)
-    if gain < DECAY_CHI2 or not DECAY_MIN_RAD <= np.linalg.norm(f["decay"]["amplitude_rad"]) <= DECAY_MAX_RAD:
+    if _decay_gain(fit0, f) < DECAY_CHI2 or not DECAY_MIN_RAD <= np.linalg.norm(f["decay"]["amplitude_rad"]) <= DECAY_MAX_RAD:
         return None, None
     return decay, f
 
 
-def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, **kw):
+def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, held=(), **kw):
     """The tail of an estimator's convergence whose start the consistency check left out
     (:func:`._consistency.converging`, its time constant and frame ``decay``): fitted beside the
     gyro's effects where, with constant biases (segment biases would take the decay for a bias that
     moves), it gains :data:`DECAY_CHI2` and stays below :data:`DECAY_MAX_RAD`. Left unfitted, the
     decay still under way after the stretch left out reads as a bias that fades: a drift named on a
-    clean gyro. Returns ``(decay, the fit with ``segs`` and the decay)`` or ``(None, None)``."""
+    clean gyro. ``held``: the channels whose biases ``kw``'s ``hold_bias`` holds at 0 in the fit with
+    ``segs``. Returns ``(decay, the fit with ``segs`` and the decay)`` or ``(None, None)``."""
     const = [np.zeros(len(anchors) - 1, int)] * 3
-    offs = np.cumsum([0] + [int(s.max()) + 1 for s in segs])  # a held bias: its channel's constant one
-    kc = {**kw, "hold_bias": tuple(sorted({int(np.searchsorted(offs, i, side="right") - 1) for i in kw.get("hold_bias", ())}))}
+    kc = {**kw, "hold_bias": tuple(sorted(held))}  # with one bias per channel, channel c's is parameter c
     f0 = fit_ref(run, noise_var, const, anchors, *args, **kc)
     f1 = fit_ref(run, noise_var, const, anchors, *args, decay=decay, **kc)
-    gain = (f0["chi2"] - f1["chi2"]) / max(f1["chi2"] / max(f1["dof"] - 3, 1), 1e-300)
-    if gain < DECAY_CHI2 or np.linalg.norm(f1["decay"]["amplitude_rad"]) > DECAY_MAX_RAD:
+    if _decay_gain(f0, f1) < DECAY_CHI2 or np.linalg.norm(f1["decay"]["amplitude_rad"]) > DECAY_MAX_RAD:
         return None, None
     return decay, fit_ref(run, noise_var, segs, anchors, *args, decay=decay, **kw)
 

@@ -298,7 +298,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     conv = next((sp for sp in ref_spans if sp.get("kind") == "converges"), None)
     if not decay and conv:  # the tail of the convergence the consistency check left out the start of
         decay, fit_d = decay_tail(fit_ref, (conv["tau_s"], conv["frame"]), run, var_rate, [int_seg] * 3, anchors,
-                                  sample_var, use=use, hold_scale=hold, **hb)
+                                  sample_var, use=use, hold_scale=hold, held=tuple(held), **hb)
     if decay:
         fit_ref, fit0 = partial(fit_ref, decay=decay), fit_d
         notes.append(f"the reference converges like an estimator starting {fmt(math.degrees(np.linalg.norm(fit0['decay']['amplitude_rad'])))} "
