@@ -16,7 +16,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy import stats
+from scipy import optimize, stats
 
 from ...models._quaternion import (
     cumulative_quat_product_np,
@@ -108,10 +108,23 @@ def decay_regressor(run, anchors, tau, frame, after=0.0):
     return (ea - eb)[:, None, None] * np.eye(3)
 
 
+def _decay_terms(run, anchors, decay):
+    """The regressor (n_int, 3, 3 or 6) of ``decay``: ``(tau, frame)``, or ``(tau, frame, True)`` with a
+    constant turn of the reference's frame beside it (a body-frame error that never decays: a marker
+    frame the alignment left, under an estimator's error converging)."""
+    X = decay_regressor(run, anchors, decay[0], decay[1])
+    if len(decay) > 2 and decay[2]:
+        X = np.concatenate([X, decay_regressor(run, anchors, math.inf, "body")], axis=2)
+    return X
+
+
 def _decay_record(decay, theta, i):
-    """A fitted converging error: its time constant, frame, first parameter index and amplitudes [rad]."""
+    """A fitted converging error: its time constant, frame, first parameter index, amplitudes [rad] and
+    the constant turn beside it [rad] (None where it is not fitted)."""
+    turn = len(decay) > 2 and decay[2] if decay is not None else False
     return None if decay is None else {"tau_s": float(decay[0]), "frame": decay[1], "index": int(i),
-                                       "amplitude_rad": [float(x) for x in theta[i:i + 3]]}
+                                       "amplitude_rad": [float(x) for x in theta[i:i + 3]],
+                                       "turn_rad": [float(x) for x in theta[i + 3:i + 6]] if turn else None}
 
 
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
@@ -157,7 +170,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     # nuisance parameter too: its error over an interval, R_b w_b tau - R_a w_a tau, telescopes like
     # the noise but follows the motion, and unfitted it would be read as a scale
     has_tau, i_dec = ref_var > 0, sc + 4 + (ref_var > 0)
-    p = i_dec + 3 * (decay is not None)
+    p = i_dec + (0 if decay is None else 6 if len(decay) > 2 and decay[2] else 3)
     theta = np.zeros(p)
     theta[sc : sc + 3] = 1.0
     theta[sc + 3] = 0.5
@@ -182,7 +195,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
         nuisance.append((sc + 4, (Rw[1:] - Rw[:-1])[:, :, None]))
     if decay is not None:  # the converging error's regressor: its change over each interval
-        nuisance.append((i_dec, decay_regressor(run, anchors, *decay)))
+        nuisance.append((i_dec, _decay_terms(run, anchors, decay)))
     for it in range(max_iter):
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
@@ -540,6 +553,29 @@ def _decay_gain(without, with_decay) -> float:
     return (without["chi2"] - with_decay["chi2"]) / max(with_decay["chi2"] / max(with_decay["dof"] - 3, 1), 1e-300)
 
 
+def _sized_tau(fit0, sw, r, decay_cols, tau, taus):
+    """The time constant of a decay found on the grid ``taus`` (near ``tau``), sized beside constant
+    biases: segment biases take a body-frame decay for a fading bias, and where they take part of it
+    its time constant comes out off by the grid's step, which leaves a residual that reads as a bias
+    drift. Linearised at ``fit0`` (weighted Jacobian ``fit0["Jf"] * sw``, weighted residual ``r``):
+    the segment biases' columns summed per channel, the signal they held put back."""
+    A = fit0["Jf"] * sw[:, None]
+    offs = fit0["offs"]
+    y = r + A[:, :offs[-1]] @ fit0["theta"][:offs[-1]]
+    Ac = np.column_stack([A[:, offs[c]:offs[c + 1]].sum(1) for c in range(3)] + [A[:, offs[-1]:]])
+
+    def rss(log_tau):
+        B = np.hstack([Ac, decay_cols(math.exp(log_tau))])
+        return float(np.sum((y - B @ np.linalg.lstsq(B, y, rcond=1e-12)[0]) ** 2))
+
+    step = math.log(taus[1] / taus[0]) if len(taus) > 1 else 0.5
+    lo, hi = max(math.log(tau) - 2 * step, math.log(taus[0])), min(math.log(tau) + 2 * step, math.log(taus[-1]))
+    if hi <= lo:
+        return tau
+    return float(math.exp(optimize.minimize_scalar(rss, bounds=(lo, hi), method="bounded",
+                                                   options={"xatol": 0.01}).x))
+
+
 def decay_profile(fit_ref, fit0, run, anchors, *args, **kw):
     """The reference as an estimator still converging: ``(tau, frame)`` of the decay
     ``v exp(-(t - t0) / tau)`` of its error that :func:`reference_fit` (``decay=``) fits best beside
@@ -564,26 +600,41 @@ def decay_profile(fit_ref, fit0, run, anchors, *args, **kw):
     A0 = fit0["Jf"] * sw[:, None]
     r = fit0["res"].reshape(-1) * sw
 
-    def rss(tau, frame, after=0.0):
+    def cols(tau, frame, after=0.0):
         Jd = decay_regressor(run, anchors, tau, frame, after)
-        Jd = (Jd if fit0["white"] is None else _whiten(fit0["white"], Jd)).reshape(-1, 3) * sw[:, None]
-        A = np.hstack([A0, Jd])
+        return (Jd if fit0["white"] is None else _whiten(fit0["white"], Jd)).reshape(-1, 3) * sw[:, None]
+
+    turn_cols = cols(math.inf, "body")
+
+    def rss(tau, frame, after=0.0, turn=False):
+        A = np.hstack([A0, cols(tau, frame, after)] + [turn_cols] * turn)
         return float(np.sum((r - A @ np.linalg.lstsq(A, r, rcond=1e-12)[0]) ** 2))
 
-    best = min((rss(float(tau), frame), (float(tau), frame)) for frame in ("global", "body")
-               for tau in np.geomspace(max(1.0, 3.0 * T / n_int), T / 2.0, DECAY_TAUS))
+    taus = np.geomspace(max(1.0, 3.0 * T / n_int), T / 2.0, DECAY_TAUS)
     # a reference turned by a constant rotation (a frame the alignment left) is a body-frame error that
-    # never decays: a slow decay would stand in for it. The decay must beat that as well
+    # never decays: a slow decay would stand in for it. The decay must beat that as well; where the
+    # reference is both turned and converging, the turn is fitted beside the decay (each must gain
+    # DECAY_VS_FRAME over the other alone)
     frame_rss = rss(math.inf, "body")
-    vs_frame = (frame_rss - best[0]) / max(best[0] / max(len(r) - A0.shape[1] - 3, 1), 1e-300)
+    level = max(frame_rss / max(len(r) - A0.shape[1] - 6, 1), 1e-300)
+    best = min((rss(float(tau), frame), (float(tau), frame)) for frame in ("global", "body") for tau in taus)
+    both = min((rss(float(tau), frame, turn=True), (float(tau), frame, True)) for frame in ("global", "body")
+               for tau in taus)
+    if (frame_rss - both[0]) / level >= DECAY_VS_FRAME and (best[0] - both[0]) / level >= DECAY_VS_FRAME:
+        best = both
+    turn = len(best[1]) > 2
+    vs_frame = (frame_rss - best[0]) / max(best[0] / max(len(r) - A0.shape[1] - 3 - 3 * turn, 1), 1e-300)
     decay = best[1]
     # only an estimator prefers the start: a bias that wanders shows decays as large anywhere in the
-    # run, so the same decay started later must gain at most half as much
-    rss0 = float(r @ r)
-    later = min(rss(*decay, after=f * T) for f in DECAY_LATER)
+    # run, so the same decay started later must gain at most half as much (beside the turn where one is
+    # fitted: the gains are then over the turn alone)
+    rss0 = frame_rss if turn else float(r @ r)
+    later = min(rss(*decay[:2], after=f * T, turn=turn) for f in DECAY_LATER)
     prefers_start = rss0 - best[0] >= DECAY_START_RATIO * (rss0 - later)
     if vs_frame < DECAY_VS_FRAME or not prefers_start:
         return None, None
+    decay = (_sized_tau(fit0, sw, r, lambda tau: np.hstack([cols(tau, decay[1])] + [turn_cols] * turn),
+                        decay[0], taus), *decay[1:])
     f = fit_ref(run, *args, decay=decay, **kw)
     # in units of the residual level left with the decay (the weights' noise level may be off either way)
     if _decay_gain(fit0, f) < DECAY_CHI2 or not DECAY_MIN_RAD <= np.linalg.norm(f["decay"]["amplitude_rad"]) <= DECAY_MAX_RAD:
@@ -615,4 +666,7 @@ def without_decay(run, decay: dict, a0: int):
     q = run["q_ref"]
     e = np.exp(-np.maximum(run["t"] - run["t"][a0], 0.0) / decay["tau_s"])
     d = quat_exp_np(np.outer(e, decay["amplitude_rad"]))
-    return quat_multiply_np(q, d) if decay["frame"] == "body" else quat_multiply_np(d, q)
+    q = quat_multiply_np(q, d) if decay["frame"] == "body" else quat_multiply_np(d, q)
+    if decay.get("turn_rad") is None:
+        return q
+    return quat_multiply_np(q, np.broadcast_to(quat_exp_np(np.asarray(decay["turn_rad"])[None]), q.shape))

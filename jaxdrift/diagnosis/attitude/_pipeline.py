@@ -305,8 +305,19 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
                      f"deg off (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame): the "
                      "decay is fitted beside the gyro's effects")
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
+    fit_drift = fit0
+    if decay:
+        # a body-frame decay is a fading bias to the segment biases beside it: they take part of it, and
+        # what they take reads as a bias that wanders. The decay is sized over constant biases and
+        # taken out of the reference for the drift test
+        const = [np.zeros(n_int, int)] * 3
+        fc = fit_ref(run, var_rate, const, anchors, sample_var, use=use, hold_scale=hold,
+                     **({"hold_bias": tuple(sorted(held))} if held else {}))
+        run_c = {**run, "q_ref": without_decay(run, fc["decay"], anchors[0])}
+        fit_drift = reference_fit(run_c, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
+                                  ref_var=ref_var, **hb)
     if M >= 4:
-        drift, drift_notes = drift_tests(dt, fit0, anchors, int_seg, M, use)
+        drift, drift_notes = drift_tests(dt, fit_drift, anchors, int_seg, M, use)
         notes += drift_notes
     else:
         drift = {}
