@@ -1,7 +1,8 @@
 """A synthetic attitude run for the diagnosis tests: a body rocking at 0.9-2.1 Hz (standing still
 for its first ``still_s``), a gyro with white noise, a constant bias and a bias random walk on wx,
 and a reference attitude every ``every`` rows, late by ``offset_s``, with white noise per row and
-an estimator's error decaying from ``converge_deg``. Returns the report."""
+an estimator's error decaying from ``converge_deg``, its frame turned by the rotation vector ``turn``.
+Returns the report."""
 
 import math
 
@@ -19,7 +20,7 @@ def rates(t, still_s=0.0):
 
 
 def diagnose_synthetic(seed, fs, every, T, noise=1e-5, bias=(0.0, 0.0, 0.0), sigma_ref=0.0, offset_s=0.0,
-                       still_s=0.0, walk=None, converge_deg=0.0, tau_s=10.0):
+                       still_s=0.0, walk=None, converge_deg=0.0, tau_s=10.0, turn=(0.0, 0.0, 0.0)):
     rng = np.random.default_rng(seed)
     dt = 1.0 / fs
     t = np.arange(0.0, T, dt)
@@ -35,7 +36,7 @@ def diagnose_synthetic(seed, fs, every, T, noise=1e-5, bias=(0.0, 0.0, 0.0), sig
     if converge_deg:
         d = np.array([0.3, -0.5, 0.8]) / np.linalg.norm([0.3, -0.5, 0.8])
         err += np.outer(np.exp(-t[rows] / tau_s), d) * math.radians(converge_deg)
-    x = (Rotation.from_quat(qf[src][:, [1, 2, 3, 0]]) * Rotation.from_rotvec(err)).as_quat()
+    x = (Rotation.from_quat(qf[src][:, [1, 2, 3, 0]]) * Rotation.from_rotvec(turn) * Rotation.from_rotvec(err)).as_quat()
     q_ref = np.full((len(t), 4), np.nan)
     q_ref[rows] = x[:, [3, 0, 1, 2]]
     run = {"path": "synthetic", "t": t, "dt": dt, "w": w_meas, "q_ref": q_ref, "acc": None, "extra_columns": [],

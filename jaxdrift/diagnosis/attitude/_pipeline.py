@@ -216,9 +216,15 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     settled = clock_settled(offset_left, float(np.median(np.diff(anchors))) * dt)
     fit_w = fit_ref(run, var_rate, *one, use=use) if settled else None
     ref_var = reference_noise_var(fit_w) if settled else 0.0
-    if ref_var > 0 and not gls_agrees(fit_w, reference_fit(run, var_rate, *one, use=use, ref_var=ref_var)):
-        ref_var = 0.0  # the reference's error is not white per row (an estimator converging): not weighed
-        notes.append("the reference's own noise is not weighed: its fit disagrees with the unweighted one (Hausman)")
+    fit_g = reference_fit(run, var_rate, *one, use=use, ref_var=ref_var) if ref_var > 0 else None
+    if ref_var > 0 and not gls_agrees(fit_w, fit_g):
+        # the reference's error is not white per row: an estimator converging (its decay, profiled on the
+        # weighted fit, fitted in both and the check made again), else not weighed
+        dec = decay_profile(partial(reference_fit, ref_var=ref_var), fit_g, run, anchors, var_rate, *one, use=use)[0]
+        if not dec or not gls_agrees(reference_fit(run, var_rate, *one, use=use, decay=dec),
+                                     reference_fit(run, var_rate, *one, use=use, ref_var=ref_var, decay=dec)):
+            ref_var = 0.0
+            notes.append("the reference's own noise is not weighed: its fit disagrees with the unweighted one (Hausman)")
     if ref_var > 0:
         fit_ref = partial(reference_fit, ref_var=ref_var)
         notes.append(f"the reference's own noise ({fmt(math.sqrt(ref_var))} rad per row, from neighbouring residuals) weighs the fit (GLS)")
@@ -302,8 +308,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     if decay:
         fit_ref, fit0 = partial(fit_ref, decay=decay), fit_d
         notes.append(f"the reference converges like an estimator starting {fmt(math.degrees(np.linalg.norm(fit0['decay']['amplitude_rad'])))} "
-                     f"deg off (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame): the "
-                     "decay is fitted beside the gyro's effects")
+                     f"deg off (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame"
+                     + ("" if fit0["decay"]["turn_rad"] is None else ", its frame turned by a constant "
+                        f"{fmt(math.degrees(np.linalg.norm(fit0['decay']['turn_rad'])))} deg beside it")
+                     + "): the decay is fitted beside the gyro's effects")
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
     fit_drift = fit0
     if decay:
