@@ -216,15 +216,9 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     settled = clock_settled(offset_left, float(np.median(np.diff(anchors))) * dt)
     fit_w = fit_ref(run, var_rate, *one, use=use) if settled else None
     ref_var = reference_noise_var(fit_w) if settled else 0.0
-    fit_g = reference_fit(run, var_rate, *one, use=use, ref_var=ref_var) if ref_var > 0 else None
-    if ref_var > 0 and not gls_agrees(fit_w, fit_g):
-        # the reference's error is not white per row: an estimator converging (its decay, profiled on the
-        # weighted fit, fitted in both and the check made again), else not weighed
-        dec = decay_profile(partial(reference_fit, ref_var=ref_var), fit_g, run, anchors, var_rate, *one, use=use)[0]
-        if not dec or not gls_agrees(reference_fit(run, var_rate, *one, use=use, decay=dec),
-                                     reference_fit(run, var_rate, *one, use=use, ref_var=ref_var, decay=dec)):
-            ref_var = 0.0
-            notes.append("the reference's own noise is not weighed: its fit disagrees with the unweighted one (Hausman)")
+    if ref_var > 0 and not _gls_holds(run, var_rate, one, use, ref_var, fit_w):
+        ref_var = 0.0
+        notes.append("the reference's own noise is not weighed: its fit disagrees with the unweighted one (Hausman)")
     if ref_var > 0:
         fit_ref = partial(reference_fit, ref_var=ref_var)
         notes.append(f"the reference's own noise ({fmt(math.sqrt(ref_var))} rad per row, from neighbouring residuals) weighs the fit (GLS)")
@@ -307,8 +301,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
                                   sample_var, use=use, hold_scale=hold, held=tuple(held), **hb)
     if decay:
         fit_ref, fit0 = partial(fit_ref, decay=decay), fit_d
-        notes.append(f"the reference converges like an estimator starting {fmt(math.degrees(np.linalg.norm(fit0['decay']['amplitude_rad'])))} "
-                     f"deg off (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame"
+        i0 = int(np.argmax(use.any(1)))  # its size where the compared stretch starts
+        size = np.linalg.norm(fit0["decay"]["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / decay[0])
+        notes.append(f"the reference converges like an estimator {fmt(math.degrees(size))} deg off "
+                     f"{'at its start' if i0 == 0 else f'where it is compared from ({fmt(t[anchors[i0]] - t[0])} s)'} (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame"
                      + ("" if fit0["decay"]["turn_rad"] is None else ", its frame turned by a constant "
                         f"{fmt(math.degrees(np.linalg.norm(fit0['decay']['turn_rad'])))} deg beside it")
                      + "): the decay is fitted beside the gyro's effects")
@@ -357,6 +353,21 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     if noise.finding is None and not (noise.wn or {}).get("plateau", True):  # never white: the reference bounds it
         noise = replace(noise, finding=residual_noise_bound(fit, var_rate, n_int, noise.floor * math.sqrt(dt)))
     return replace(comp, findings=tuple(findings), said=said), noise
+
+
+def _gls_holds(run, var_rate, one, use, ref_var, fit_w) -> bool:
+    """Whether the fit weighed by the reference's noise (GLS) agrees with the unweighted one ``fit_w``
+    (:func:`._gyro.gls_agrees`; ``one``: constant biases' layout, the anchors, the sample variances),
+    also where it does with an estimator's decay fitted in both (:func:`._gyro.decay_profile`,
+    profiled on the weighted fit): a converging reference's error is not white per row, but its decay
+    is a nuisance the fit carries."""
+    segs, anchors, sample_var = one
+    fg = reference_fit(run, var_rate, segs, anchors, sample_var, use=use, ref_var=ref_var)
+    if gls_agrees(fit_w, fg):
+        return True
+    dec = decay_profile(partial(reference_fit, ref_var=ref_var), fg, run, anchors, var_rate, *one, use=use)[0]
+    return bool(dec) and gls_agrees(reference_fit(run, var_rate, *one, use=use, decay=dec),
+                                    reference_fit(run, var_rate, *one, use=use, ref_var=ref_var, decay=dec))
 
 
 def _bias_idx(fit, channels):
