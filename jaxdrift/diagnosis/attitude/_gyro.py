@@ -289,7 +289,7 @@ def reference_noise_var(fit) -> float:
     from .._diffnoise import mad_sigma
 
     r, use = np.asarray(fit["res_rad"]), np.asarray(fit["use"], bool)
-    v1, v2, d1, d2, n, n3, lag1 = [], [], [], [], 0, 0, 0.0
+    v1, v2, n, lag1 = [], [], 0, 0.0
     for a in range(3):
         pair = use[:-1, a] & use[1:, a]
         if pair.sum() < 10:
@@ -300,11 +300,6 @@ def reference_noise_var(fit) -> float:
         n += int(pair.sum())
         # by ranks: an optical marker's few jumps (one row off and back) are opposite neighbours too
         lag1 += float(stats.spearmanr(x, y)[0]) * int(pair.sum()) if np.ptp(x) > 0 and np.ptp(y) > 0 else 0.0
-        three = use[:-2, a] & use[1:-1, a] & use[2:, a]
-        if three.sum() >= 10:
-            d1.append(mad_sigma(r[1:-1, a][three] - r[:-2, a][three]) ** 2)
-            d2.append(mad_sigma(r[2:, a][three] - r[:-2, a][three]) ** 2)
-            n3 += int(three.sum())
     if not v1:
         return 0.0
     v1m, v2m = float(np.mean(v1)), float(np.mean(v2))
@@ -316,17 +311,7 @@ def reference_noise_var(fit) -> float:
     # (1/sqrt(n) without the reference's noise; a wandering bias makes them alike): the spreads'
     # own test is weak over a few dozen intervals (a 1 Hz reference over a minute)
     sparse = n < LAG1_BELOW
-    if est > 3.0 * se or (sparse and est > 0 and lag1 / math.sqrt(n) < -3.0):
-        return est
-    if not d1:
-        return 0.0
-    # or from the residuals' differences, where a slow error (a bias that wanders, an estimator's
-    # tail) hides it from the spreads above (it adds alike to neighbours): the difference over one
-    # interval carries 6 ref_var + 2 N^2 dt, over two 4 ref_var + 2 N^2 dt; a slow error enters both
-    # as its rate's square times the intervals' (one and four)
-    d1m, d2m = float(np.mean(d1)), float(np.mean(d2))
-    est_d = 0.5 * (d1m - d2m)
-    return est_d if est_d > 3.0 * 0.5 * math.sqrt(10.8 / n3) * math.sqrt(d1m**2 + d2m**2) else 0.0
+    return est if est > 3.0 * se or (sparse and est > 0 and lag1 / math.sqrt(n) < -3.0) else 0.0
 
 
 #: below this many neighbouring pairs of intervals (over the three axes) the reference's noise may be
