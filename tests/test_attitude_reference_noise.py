@@ -54,9 +54,9 @@ def test_an_estimator_converging_is_not_weighed_and_names_no_bias():
 def test_a_slowly_converging_estimator_is_fitted_beside_the_bias(monkeypatch):
     """An estimator 4 deg off whose error decays with a 30 s time constant over a 90 s run: no
     stretch can be left out (a third of the run in, its rate still exceeds the bias), so the decay is
-    fitted beside the gyro's effects (``_gyro.decay_profile``): the wy bias is found inside its
+    fitted beside the gyro's effects (``_decay.decay_profile``): the wy bias is found inside its
     interval and nothing else is named. Without the decay the bias is lost under the fading error."""
-    from jaxdrift.diagnosis.attitude import _gyro
+    from jaxdrift.diagnosis.attitude import _decay
 
     kw = dict(bias=(0.0, -5e-4, 0.0), sigma_ref=3e-4, converge_deg=4.0, tau_s=30.0)
     rep = _diagnose(5104, **kw)
@@ -65,6 +65,6 @@ def test_a_slowly_converging_estimator_is_fitted_beside_the_bias(monkeypatch):
     assert not _by(rep, "gyro_scale") and not _by(rep, "gyro_bias_drift"), rep["findings"]
     note = next(n for n in rep["observability"]["notes"] if "converges like an estimator" in n)
     assert " deg off " in note
-    monkeypatch.setattr(_gyro, "DECAY_CHI2", math.inf)
+    monkeypatch.setattr(_decay, "DECAY_CHI2", math.inf)
     rep = _diagnose(5104, **kw)
     assert "wy" not in _by(rep, "gyro_bias"), rep["findings"]  # measured: the bias is lost under the decay

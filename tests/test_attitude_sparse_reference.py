@@ -12,7 +12,7 @@ to the one habit that broke the diagnosis (``jaxdrift/diagnosis/attitude``):
 - an estimator converging from 8.6 deg with an 11.5 s time constant (the generator's own run): the
   consistency check leaves out its first half minute, and the tail that decays after it was read as
   a gyro bias drift on a clean gyro; the tail is now fitted with the time constant the check found
-  (``_gyro.decay_tail``).
+  (``_decay.decay_tail``).
 """
 
 import math
@@ -84,7 +84,7 @@ def test_a_sparse_reference_on_an_unsettled_clock_is_weighed_where_its_intervals
 def test_a_turned_frame_under_a_converging_estimator_is_fitted_beside_its_decay():
     """A 20 Hz reference converging from 4.5 deg (12 s time constant) in a frame turned by a constant
     1.1 deg, with 0.9 mrad of noise per row: the decay alone or the turn alone leaves a fading
-    residual that read as a bias drift beside a false bias; fitted together (``_gyro.decay_profile``)
+    residual that read as a bias drift beside a false bias; fitted together (``_decay.decay_profile``)
     the gyro's 0.3 mrad/s wy bias is found, and nothing else."""
     b = 3e-4
     rep = _diagnose(4410, 400.0, 20, 90.0, noise=5e-5, bias=(0.0, b, 0.0), sigma_ref=9e-4, converge_deg=4.5,

@@ -65,8 +65,9 @@ from ._common import (
     Z_SIGNIFICANT,
     fmt,
 )
-from ._gyro import (cluster_cov, convention_terms, decay_profile, half_rate_fit, reference_fit, reference_noise_var,
-                    decay_tail, gls_agrees, gyro_halves, test_se, static_segment, without_decay)
+from ._decay import decay_profile, decay_tail, without_decay
+from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reference_noise_var, gls_agrees,
+                    gyro_halves, test_se, static_segment)
 from ._drift import drift_tests
 from ._noise import allan, estimate_white_noise, white_noise_recorded
 from ._alignment import alignment_step, clock_offset_left, clock_settled
@@ -291,35 +292,10 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
         if held:
             fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, hold_bias=_bias_idx(fit0, held))
-    # an estimator converging slowly (:func:`._gyro.decay_profile`): its decay fitted beside the gyro's effects
-    hb = {"hold_bias": _bias_idx(fit0, held)} if held else {}
-    decay, fit_d = decay_profile(fit_ref, fit0, run, anchors, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
-                                 hold_scale=hold, **hb)
-    conv = next((sp for sp in ref_spans if sp.get("kind") == "converges"), None)
-    if not decay and conv:  # the tail of the convergence the consistency check left out the start of
-        decay, fit_d = decay_tail(fit_ref, (conv["tau_s"], conv["frame"]), run, var_rate, [int_seg] * 3, anchors,
-                                  sample_var, use=use, hold_scale=hold, held=tuple(held), **hb)
-    if decay:
-        fit_ref, fit0 = partial(fit_ref, decay=decay), fit_d
-        i0 = int(np.argmax(use.any(1)))  # its size where the compared stretch starts
-        size = np.linalg.norm(fit0["decay"]["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / decay[0])
-        notes.append(f"the reference converges like an estimator {fmt(math.degrees(size))} deg off "
-                     f"{'at its start' if i0 == 0 else f'where it is compared from ({fmt(t[anchors[i0]] - t[0])} s)'} (its error decays with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame"
-                     + ("" if fit0["decay"]["turn_rad"] is None else ", its frame turned by a constant "
-                        f"{fmt(math.degrees(np.linalg.norm(fit0['decay']['turn_rad'])))} deg beside it")
-                     + "): the decay is fitted beside the gyro's effects")
+    decay, fit_ref, fit0, fit_drift, said_decay = _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg,
+                                                              sample_var, use, hold, held, ref_var)
+    notes += said_decay
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
-    fit_drift = fit0
-    if decay:
-        # a body-frame decay is a fading bias to the segment biases beside it: they take part of it, and
-        # what they take reads as a bias that wanders. The decay is sized over constant biases and
-        # taken out of the reference for the drift test
-        const = [np.zeros(n_int, int)] * 3
-        fc = fit_ref(run, var_rate, const, anchors, sample_var, use=use, hold_scale=hold,
-                     **({"hold_bias": tuple(sorted(held))} if held else {}))
-        run_c = {**run, "q_ref": without_decay(run, fc["decay"], anchors[0])}
-        fit_drift = reference_fit(run_c, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
-                                  ref_var=ref_var, **hb)
     if M >= 4:
         drift, drift_notes = drift_tests(dt, fit_drift, anchors, int_seg, M, use)
         notes += drift_notes
@@ -355,10 +331,44 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     return replace(comp, findings=tuple(findings), said=said), noise
 
 
+def _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg, sample_var, use, hold, held, ref_var):
+    """An estimator converging (:func:`._decay.decay_profile`, or the tail of one the consistency check
+    cut the start of, :func:`._decay.decay_tail`): ``(decay or None, the fit function with it, fit0 with
+    it, the fit the drift test reads, notes)``. A body-frame decay is a fading bias to segment biases
+    beside it: they take part of it, and what they take reads as a bias that wanders. So the drift
+    test reads the segment biases of the reference with the decay, sized over constant biases, taken out."""
+    t, n_int = run["t"], len(anchors) - 1
+    hb = {"hold_bias": _bias_idx(fit0, held)} if held else {}
+    decay, fit_d = decay_profile(fit_ref, fit0, run, anchors, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
+                                 hold_scale=hold, **hb)
+    conv = next((sp for sp in ref_spans if sp.get("kind") == "converges"), None)
+    if not decay and conv:  # the tail of the convergence the consistency check left out the start of
+        decay, fit_d = decay_tail(fit_ref, (conv["tau_s"], conv["frame"]), run, var_rate, [int_seg] * 3, anchors,
+                                  sample_var, use=use, hold_scale=hold, held=tuple(held), **hb)
+    if not decay:
+        return None, fit_ref, fit0, fit0, []
+    rec = fit_d["decay"]
+    i0 = int(np.argmax(use.any(1)))  # its size where the compared stretch starts
+    size = np.linalg.norm(rec["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / decay[0])
+    where = "at its start" if i0 == 0 else f"where it is compared from ({fmt(t[anchors[i0]] - t[0])} s)"
+    turn = "" if rec["turn_rad"] is None else \
+        f", its frame turned by a constant {fmt(math.degrees(np.linalg.norm(rec['turn_rad'])))} deg beside it"
+    note = (f"the reference converges like an estimator {fmt(math.degrees(size))} deg off {where} (its error decays "
+            f"with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame{turn}): the decay is fitted beside "
+            "the gyro's effects")
+    fit_ref = partial(fit_ref, decay=decay)
+    fc = fit_ref(run, var_rate, [np.zeros(n_int, int)] * 3, anchors, sample_var, use=use, hold_scale=hold,
+                 **({"hold_bias": tuple(sorted(held))} if held else {}))
+    run_c = {**run, "q_ref": without_decay(run, fc["decay"], anchors[0])}
+    fit_drift = reference_fit(run_c, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
+                              ref_var=ref_var, **hb)
+    return decay, fit_ref, fit_d, fit_drift, [note]
+
+
 def _gls_holds(run, var_rate, one, use, ref_var, fit_w) -> bool:
     """Whether the fit weighed by the reference's noise (GLS) agrees with the unweighted one ``fit_w``
     (:func:`._gyro.gls_agrees`; ``one``: constant biases' layout, the anchors, the sample variances),
-    also where it does with an estimator's decay fitted in both (:func:`._gyro.decay_profile`,
+    also where it does with an estimator's decay fitted in both (:func:`._decay.decay_profile`,
     profiled on the weighted fit): a converging reference's error is not white per row, but its decay
     is a nuisance the fit carries."""
     segs, anchors, sample_var = one
