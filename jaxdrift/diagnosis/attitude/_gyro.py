@@ -103,8 +103,9 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     ``hold_scale``: channels whose scale is held at 1, ``hold_bias``: parameter indices of biases held
     at 0 (what the run does not determine, so that the rest is judged on its own).
 
-    ``decay``: ``(tau, frame)``, an estimator's converging error (:func:`decay_regressor`), its three
-    amplitudes the last parameters.
+    ``decay``: ``(tau, frame)``, an estimator's converging error (:func:`._decay.decay_regressor`), its
+    three amplitudes the last parameters; ``(tau, frame, True)``: with a constant turn of the
+    reference's frame beside it, three parameters more.
 
     ``use``: optional (n_int, 3) bool, the (interval, global axis) cells that enter the fit (the others
     get weight 0: a reference inconsistent there, :mod:`._consistency`, or an interval across a gap).
