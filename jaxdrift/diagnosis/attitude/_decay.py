@@ -197,6 +197,16 @@ def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, held=(), **
     return decay, fit_ref(run, noise_var, segs, anchors, *args, decay=decay, **kw)
 
 
+def corrected_anchors(run, anchors, decay, amps):
+    """The reference at the anchor rows with the converging error ``decay`` (``(tau, frame)``, or
+    ``(tau, frame, True)`` with a constant turn) of parameters ``amps`` (the fit's: minus the error's)
+    taken out."""
+    rec = {"tau_s": decay[0], "frame": decay[1], "amplitude_rad": amps[:3],
+           "turn_rad": amps[3:6] if len(decay) > 2 and decay[2] else None}
+    sub = {"t": run["t"][anchors], "q_ref": run["q_ref"][anchors]}
+    return without_decay(sub, rec, 0)
+
+
 def without_decay(run, decay: dict, a0: int):
     """The reference quaternions (n, 4) with a fitted converging error (``reference_fit``'s
     ``decay`` record, ``a0`` its first anchor row) taken out: the fit's amplitudes ``v`` are minus the

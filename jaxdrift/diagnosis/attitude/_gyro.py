@@ -26,7 +26,7 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_matrix_np,
 )
-from ._decay import _decay_record, _decay_terms
+from ._decay import _decay_record, _decay_terms, corrected_anchors
 
 __all__ = ["reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
 
@@ -160,9 +160,13 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     if has_tau:  # the offset's regressor: the reference's attitudes and the gyro at the anchors only
         Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
         nuisance.append((sc + 4, (Rw[1:] - Rw[:-1])[:, :, None]))
-    if decay is not None:  # the converging error's regressor: its change over each interval
-        nuisance.append((i_dec, _decay_terms(run, anchors, decay)))
+    X_dec = None if decay is None else _decay_terms(run, anchors, decay)  # its change over each interval
+    q_anc = q_ref.copy() if decay is not None else q_ref
     for it in range(max_iter):
+        if decay is not None:
+            # the reference with the converging error (and the turn) as fitted taken out, exactly: the
+            # linear regressor is its Jacobian (a 4 deg error's second order read as a small bias)
+            q_anc[anchors] = corrected_anchors(run, anchors, decay, theta[i_dec:p])
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
         lam = theta[sc + 3]
@@ -179,15 +183,15 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         Pa = P[starts - a0]
         Pb = P[ends - a0]
         rel = quat_multiply_np(quat_conjugate_np(Pa), Pb)  # gyro relative rotation over each interval
-        qa = q_ref[starts]
-        qb = q_ref[ends]
+        qa = q_anc[starts]
+        qb = q_anc[ends]
         err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
         e = quat_log_np(err_q)  # (n_int, 3) global frame
         for i, X in nuisance:
             e = e + np.einsum("nab,b->na", X, theta[i:i + X.shape[2]])
         # attitude of each row, anchored on its interval's reference
         anc = anchors[int_of_row]
-        G = quat_multiply_np(quat_multiply_np(q_ref[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
+        G = quat_multiply_np(quat_multiply_np(q_anc[anc], quat_conjugate_np(P[anc - a0])), P[:-1])
         R = rotation_matrix_np(G) * dt  # (rows, 3, 3)
         J = np.zeros((n_int, 3, p))
         RB = _interval_sums(R, starts - a0, ends - a0)  # (n_int, 3, 3)
@@ -197,7 +201,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
             J[np.arange(n_int), :, cols] = -RB[:, :, c] / s[c]
             J[:, :, sc + c] = -RS[:, :, c] / s[c]
         J[:, :, sc + 3] = _interval_sums(np.einsum("nab,nb->na", R, dw), starts - a0, ends - a0)
-        for i, X in nuisance:
+        for i, X in nuisance + ([(i_dec, X_dec)] if decay is not None else []):
             J[:, :, i:i + X.shape[2]] = X
         Jf = (J if white is None else _whiten(white, J)).reshape(-1, p)
         ef = (e if white is None else _whiten(white, e)).reshape(-1)
