@@ -17,19 +17,21 @@ from scipy import optimize
 
 from ...models._quaternion import quat_exp_np, quat_multiply_np, rotation_matrix_np
 
-__all__ = ["decay_regressor", "decay_profile", "decay_tail", "without_decay", "DECAY_CHI2", "DECAY_VS_FRAME"]
+__all__ = ["decay_regressor", "decay_terms", "n_decay", "corrected_anchors", "decay_profile", "decay_tail", "without_decay", "DECAY_CHI2", "DECAY_VS_FRAME"]
 
 
-def decay_regressor(run, anchors, tau, frame, after=0.0):
+def decay_regressor(run, anchors, tau, frame, after=0.0, d_log_tau=False):
     """(n_int, 3, 3): how a reference error ``v exp(-(t - t0) / tau)`` (``t0`` the first anchor, or
     ``after`` seconds later with no error before; in the ``"global"`` frame or the ``"body"``'s)
-    enters each interval's discrepancy, per component of ``v``."""
+    enters each interval's discrepancy, per component of ``v`` (``d_log_tau``: its derivative with
+    respect to ``log tau``)."""
     t, q_ref = run["t"], run["q_ref"]
     starts, ends = anchors[:-1], anchors[1:]
     t0 = t[anchors[0]] + after
 
     def e(x):
-        return np.where(x >= t0, np.exp(-np.maximum(x - t0, 0.0) / tau), 0.0)
+        u = np.maximum(x - t0, 0.0) / tau
+        return np.where(x >= t0, np.exp(-u) * (u if d_log_tau else 1.0), 0.0)
 
     ea, eb = e(t[starts]), e(t[ends])
     if frame == "body":
@@ -37,23 +39,34 @@ def decay_regressor(run, anchors, tau, frame, after=0.0):
     return (ea - eb)[:, None, None] * np.eye(3)
 
 
-def _decay_terms(run, anchors, decay):
-    """The regressor (n_int, 3, 3 or 6) of ``decay``: ``(tau, frame)``, or ``(tau, frame, True)`` with a
-    constant turn of the reference's frame beside it (a body-frame error that never decays: a marker
-    frame the alignment left, under an estimator's error converging)."""
-    X = decay_regressor(run, anchors, decay[0], decay[1])
+def n_decay(decay) -> int:
+    """The reference fit's parameters of ``decay`` (None, ``(tau, frame)`` or ``(tau, frame, True)``):
+    three amplitudes, three of the turn where it is fitted, and ``log tau``."""
+    return 0 if decay is None else 7 if len(decay) > 2 and decay[2] else 4
+
+
+def decay_terms(run, anchors, decay, theta):
+    """The Jacobian (n_int, 3, :func:`n_decay`) of the intervals' discrepancy in the decay's parameters
+    ``theta`` (amplitudes, the turn's where ``decay`` is ``(tau, frame, True)``, ``log tau`` last):
+    the amplitudes' regressor, the constant turn's (a body-frame error that never decays: a marker
+    frame the alignment left, under an estimator's error converging) and the time constant's."""
+    tau, frame = math.exp(theta[-1]), decay[1]
+    X = [decay_regressor(run, anchors, tau, frame)]
     if len(decay) > 2 and decay[2]:
-        X = np.concatenate([X, decay_regressor(run, anchors, math.inf, "body")], axis=2)
-    return X
+        X.append(decay_regressor(run, anchors, math.inf, "body"))
+    X.append(np.einsum("nab,b->na", decay_regressor(run, anchors, tau, frame, d_log_tau=True), theta[:3])[:, :, None])
+    return np.concatenate(X, axis=2)
 
 
 def _decay_record(decay, theta, i):
     """A fitted converging error: its time constant, frame, first parameter index, amplitudes [rad] and
     the constant turn beside it [rad] (None where it is not fitted)."""
-    turn = len(decay) > 2 and decay[2] if decay is not None else False
-    return None if decay is None else {"tau_s": float(decay[0]), "frame": decay[1], "index": int(i),
-                                       "amplitude_rad": [float(x) for x in theta[i:i + 3]],
-                                       "turn_rad": [float(x) for x in theta[i + 3:i + 6]] if turn else None}
+    if decay is None:
+        return None
+    k = n_decay(decay)
+    return {"tau_s": float(math.exp(theta[i + k - 1])), "frame": decay[1], "index": int(i),
+            "amplitude_rad": [float(x) for x in theta[i:i + 3]],
+            "turn_rad": [float(x) for x in theta[i + 3:i + 6]] if k == 7 else None}
 
 
 #: a converging estimator is fitted beside the gyro's effects where its decay, profiled over
@@ -191,20 +204,18 @@ def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, held=(), **
     use = kw.get("use")
     i0 = int(np.argmax(use.any(1))) if use is not None and use.any() else 0
     t = run["t"]
-    size = np.linalg.norm(f1["decay"]["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / decay[0])
+    size = np.linalg.norm(f1["decay"]["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / f1["decay"]["tau_s"])
     if _decay_gain(f0, f1) < DECAY_CHI2 or size > DECAY_MAX_RAD:
         return None, None
     return decay, fit_ref(run, noise_var, segs, anchors, *args, decay=decay, **kw)
 
 
-def corrected_anchors(run, anchors, decay, amps):
+def corrected_anchors(run, anchors, decay, theta):
     """The reference at the anchor rows with the converging error ``decay`` (``(tau, frame)``, or
-    ``(tau, frame, True)`` with a constant turn) of parameters ``amps`` (the fit's: minus the error's)
-    taken out."""
-    rec = {"tau_s": decay[0], "frame": decay[1], "amplitude_rad": amps[:3],
-           "turn_rad": amps[3:6] if len(decay) > 2 and decay[2] else None}
+    ``(tau, frame, True)`` with a constant turn) of the fit's parameters ``theta`` (:func:`decay_terms`;
+    the amplitudes are minus the error's) taken out."""
     sub = {"t": run["t"][anchors], "q_ref": run["q_ref"][anchors]}
-    return without_decay(sub, rec, 0)
+    return without_decay(sub, _decay_record(decay, theta, 0), 0)
 
 
 def without_decay(run, decay: dict, a0: int):

@@ -26,7 +26,7 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_matrix_np,
 )
-from ._decay import _decay_record, _decay_terms, corrected_anchors
+from ._decay import _decay_record, corrected_anchors, decay_terms, n_decay
 
 __all__ = ["reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
 
@@ -136,10 +136,12 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     # nuisance parameter too: its error over an interval, R_b w_b tau - R_a w_a tau, telescopes like
     # the noise but follows the motion, and unfitted it would be read as a scale
     has_tau, i_dec = ref_var > 0, sc + 4 + (ref_var > 0)
-    p = i_dec + (0 if decay is None else 6 if len(decay) > 2 and decay[2] else 3)
+    p = i_dec + n_decay(decay)
     theta = np.zeros(p)
     theta[sc : sc + 3] = 1.0
     theta[sc + 3] = 0.5
+    if decay is not None:  # its time constant is fitted too, from ``decay``'s, within a factor of e of it
+        log_tau0 = theta[p - 1] = math.log(decay[0])
     rows = np.arange(a0, aN)
     w_pad = np.concatenate([w[:1], w, w[-1:], w[-1:]], 0)  # w_pad[k + 1] = w[k]
     int_of_row = np.searchsorted(anchors, rows, side="right") - 1
@@ -160,13 +162,14 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     if has_tau:  # the offset's regressor: the reference's attitudes and the gyro at the anchors only
         Rw = np.einsum("nab,nb->na", rotation_matrix_np(q_ref[anchors]), w[anchors])
         nuisance.append((sc + 4, (Rw[1:] - Rw[:-1])[:, :, None]))
-    X_dec = None if decay is None else _decay_terms(run, anchors, decay)  # its change over each interval
     q_anc = q_ref.copy() if decay is not None else q_ref
     for it in range(max_iter):
         if decay is not None:
-            # the reference with the converging error (and the turn) as fitted taken out, exactly: the
-            # linear regressor is its Jacobian (a 4 deg error's second order read as a small bias)
+            # the reference with the converging error (and the turn) as fitted taken out, exactly, the
+            # regressors its Jacobian (a 4 deg error's second order, or its time constant 2 % off on the
+            # profile's grid, read as a bias of 6e-6 to 9e-6 rad/s)
             q_anc[anchors] = corrected_anchors(run, anchors, decay, theta[i_dec:p])
+            X_dec = decay_terms(run, anchors, decay, theta[i_dec:p])
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
         s = theta[sc : sc + 3]
         lam = theta[sc + 3]
@@ -230,6 +233,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
             g[i] = theta[i]
         step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
         theta = theta + step
+        if decay is not None:
+            theta[p - 1] = np.clip(theta[p - 1], log_tau0 - 1.0, log_tau0 + 1.0)
         se = np.sqrt(np.abs(np.diag(np.linalg.pinv(H, rcond=1e-12))))
         if np.all(np.abs(step) <= 1e-3 * se + 1e-15):
             break

@@ -349,12 +349,12 @@ def _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg, sampl
         return None, fit_ref, fit0, fit0, []
     rec = fit_d["decay"]
     i0 = int(np.argmax(use.any(1)))  # its size where the compared stretch starts
-    size = np.linalg.norm(rec["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / decay[0])
+    size = np.linalg.norm(rec["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / rec["tau_s"])
     where = "at its start" if i0 == 0 else f"where it is compared from ({fmt(t[anchors[i0]] - t[0])} s)"
     turn = "" if rec["turn_rad"] is None else \
         f", its frame turned by a constant {fmt(math.degrees(np.linalg.norm(rec['turn_rad'])))} deg beside it"
     note = (f"the reference converges like an estimator {fmt(math.degrees(size))} deg off {where} (its error decays "
-            f"with a time constant of {fmt(decay[0])} s, in the {decay[1]} frame{turn}): the decay is fitted beside "
+            f"with a time constant of {fmt(rec['tau_s'])} s, in the {decay[1]} frame{turn}): the decay is fitted beside "
             "the gyro's effects")
     fit_ref = partial(fit_ref, decay=decay)
     fc = fit_ref(run, var_rate, [np.zeros(n_int, int)] * 3, anchors, sample_var, use=use, hold_scale=hold,
