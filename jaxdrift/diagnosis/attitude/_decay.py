@@ -176,11 +176,11 @@ def decay_profile(fit_ref, fit0, run, anchors, *args, **kw):
         return None, None
     decay = (_sized_tau(fit0, sw, r, lambda tau: np.hstack([cols(tau, decay[1])] + [turn_cols] * turn),
                         decay[0], taus), *decay[1:])
-    f = fit_ref(run, *args, decay=decay, **kw)
+    f = fit_ref(run, *args, decay=decay, fit_tau=False, **kw)
     # in units of the residual level left with the decay (the weights' noise level may be off either way)
     if _decay_gain(fit0, f) < DECAY_CHI2 or not DECAY_MIN_RAD <= np.linalg.norm(f["decay"]["amplitude_rad"]) <= DECAY_MAX_RAD:
         return None, None
-    return decay, f
+    return decay, fit_ref(run, *args, decay=decay, **kw)
 
 
 def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, held=(), **kw):
@@ -194,10 +194,10 @@ def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, held=(), **
     const = [np.zeros(len(anchors) - 1, int)] * 3
     kc = {**kw, "hold_bias": tuple(sorted(held))}  # with one bias per channel, channel c's is parameter c
     f0 = fit_ref(run, noise_var, const, anchors, *args, **kc)
-    f1 = fit_ref(run, noise_var, const, anchors, *args, decay=decay, **kc)
+    f1 = fit_ref(run, noise_var, const, anchors, *args, decay=decay, fit_tau=False, **kc)
     # the frame's turn the alignment estimated over the convergence (or left) is off by what the decay
     # lent it: a constant turn beside the tail where it gains DECAY_VS_FRAME over the tail alone
-    f2 = fit_ref(run, noise_var, const, anchors, *args, decay=(*decay[:2], True), **kc)
+    f2 = fit_ref(run, noise_var, const, anchors, *args, decay=(*decay[:2], True), fit_tau=False, **kc)
     if _decay_gain(f1, f2) >= DECAY_VS_FRAME:
         decay, f1 = (*decay[:2], True), f2
     # its size where the compared stretch starts (the fit extrapolates the amplitude to the first anchor)

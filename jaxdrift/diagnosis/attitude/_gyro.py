@@ -93,7 +93,7 @@ def _whiten(white, X):
 
 
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
-                  use=None, hold_scale=(), hold_bias=(), ref_var=0.0, decay=None):
+                  use=None, hold_scale=(), hold_bias=(), ref_var=0.0, decay=None, fit_tau=True):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
 
     ``ref_var``: the reference's own attitude noise variance per row and axis [rad^2]; where it is
@@ -105,7 +105,9 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
 
     ``decay``: ``(tau, frame)``, an estimator's converging error (:func:`._decay.decay_regressor`), its
     three amplitudes the last parameters; ``(tau, frame, True)``: with a constant turn of the
-    reference's frame beside it, three parameters more.
+    reference's frame beside it, three parameters more; and ``log tau``, fitted from ``tau`` unless
+    ``fit_tau`` is False (a decay's test holds it at the profile's: fitted, it gains a degree of freedom
+    the test's threshold does not count).
 
     ``use``: optional (n_int, 3) bool, the (interval, global axis) cells that enter the fit (the others
     get weight 0: a reference inconsistent there, :mod:`._consistency`, or an interval across a gap).
@@ -226,11 +228,11 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
                 continue
             g[sc + c] += eiv
             H[sc + c, sc + c] -= eiv
-        for i in hold_bias:
+        for i in tuple(hold_bias) + (() if decay is None or fit_tau else (p - 1,)):
             H[i, :] = 0.0
             H[:, i] = 0.0
             H[i, i] = 1.0
-            g[i] = theta[i]
+            g[i] = theta[i] - (log_tau0 if i == p - 1 and decay is not None else 0.0)
         step = -np.linalg.lstsq(H, g, rcond=1e-12)[0]
         theta = theta + step
         if decay is not None:
