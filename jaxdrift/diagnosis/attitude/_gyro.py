@@ -92,6 +92,21 @@ def _whiten(white, X):
     return out
 
 
+def _prefix_rotations(d):
+    """Prefix products (rows + 1, 4) of the step rotations ``d`` from the identity, normalised."""
+    P = np.empty((len(d) + 1, 4))
+    P[0] = [1, 0, 0, 0]
+    P[1:] = cumulative_quat_product_np(d)
+    return P / np.linalg.norm(P, axis=1, keepdims=True)
+
+
+def _interval_errors(P, q, starts, ends, a0):
+    """The rotation vectors (n_int, 3; global frame) by which the gyro's rotation over each interval
+    (from the prefix products ``P``, whose row 0 is row ``a0``) misses the reference ``q``'s."""
+    rel = quat_multiply_np(quat_conjugate_np(P[starts - a0]), P[ends - a0])
+    return quat_log_np(quat_multiply_np(quat_multiply_np(q[starts], rel), quat_conjugate_np(q[ends])))
+
+
 def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_var=(0.0, 0.0, 0.0), max_iter=6,
                   use=None, hold_scale=(), hold_bias=(), ref_var=0.0, decay=None, fit_tau=True):
     """Gauss-Newton fit of piecewise biases and scales to the reference intervals.
@@ -167,9 +182,7 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
     q_anc = q_ref.copy() if decay is not None else q_ref
     for it in range(max_iter):
         if decay is not None:
-            # the reference with the converging error (and the turn) as fitted taken out, exactly, the
-            # regressors its Jacobian (a 4 deg error's second order, or its time constant 2 % off on the
-            # profile's grid, read as a bias of 6e-6 to 9e-6 rad/s)
+            # the fitted decay (and turn) taken out exactly, the regressors its Jacobian (:mod:`._decay`)
             q_anc[anchors] = corrected_anchors(run, anchors, decay, theta[i_dec:p])
             X_dec = decay_terms(run, anchors, decay, theta[i_dec:p])
         b_rows = np.stack([theta[offs[c] + seg_of_interval_per_channel[c][int_of_row]] for c in range(3)], 1)
@@ -180,18 +193,8 @@ def reference_fit(run, noise_var, seg_of_interval_per_channel, anchors, sample_v
         w0, dw = convention_terms(wc_all)
         wc = w0 + lam * dw  # rate over each step
         d = quat_exp_np(wc * dt)
-        # per-interval integration: prefix products restart at every anchor (re-anchored on the reference)
-        P = np.empty((len(rows) + 1, 4))
-        P[0] = [1, 0, 0, 0]
-        P[1:] = cumulative_quat_product_np(d)
-        P /= np.linalg.norm(P, axis=1, keepdims=True)
-        Pa = P[starts - a0]
-        Pb = P[ends - a0]
-        rel = quat_multiply_np(quat_conjugate_np(Pa), Pb)  # gyro relative rotation over each interval
-        qa = q_anc[starts]
-        qb = q_anc[ends]
-        err_q = quat_multiply_np(quat_multiply_np(qa, rel), quat_conjugate_np(qb))
-        e = quat_log_np(err_q)  # (n_int, 3) global frame
+        P = _prefix_rotations(d)  # re-anchored on the reference at every anchor (below)
+        e = _interval_errors(P, q_anc, starts, ends, a0)  # (n_int, 3) global frame
         for i, X in nuisance:
             e = e + np.einsum("nab,b->na", X, theta[i:i + X.shape[2]])
         # attitude of each row, anchored on its interval's reference
