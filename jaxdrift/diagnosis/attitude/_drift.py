@@ -16,7 +16,7 @@ from ._realworld import degenerate
 __all__ = ["drift_tests"]
 
 
-def drift_tests(dt, fit0, anchors, int_seg, M, use):
+def drift_tests(dt, fit0, anchors, int_seg, M):
     """REML test of a bias random walk on the M segment biases of each channel: ``({channel:
     result}, notes)``.
 

@@ -297,7 +297,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     notes += said_decay
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
     if M >= 4:
-        drift, drift_notes = drift_tests(dt, fit_drift, anchors, int_seg, M, use)
+        drift, drift_notes = drift_tests(dt, fit_drift, anchors, int_seg, M)
         notes += drift_notes
     else:
         drift = {}
