@@ -17,7 +17,7 @@ from scipy import optimize
 
 from ...models._quaternion import quat_exp_np, quat_multiply_np, rotation_matrix_np
 
-__all__ = ["decay_regressor", "decay_terms", "n_decay", "corrected_anchors", "decay_profile", "decay_tail", "without_decay", "DECAY_CHI2", "DECAY_VS_FRAME"]
+__all__ = ["decay_regressor", "decay_terms", "n_decay", "corrected_anchors", "decay_profile", "decay_tail", "size_where_compared", "without_decay", "DECAY_CHI2", "DECAY_VS_FRAME"]
 
 
 def decay_regressor(run, anchors, tau, frame, after=0.0, d_log_tau=False):
@@ -200,14 +200,17 @@ def decay_tail(fit_ref, decay, run, noise_var, segs, anchors, *args, held=(), **
     f2 = fit_ref(run, noise_var, const, anchors, *args, decay=(*decay[:2], True), fit_tau=False, **kc)
     if _decay_gain(f1, f2) >= DECAY_VS_FRAME:
         decay, f1 = (*decay[:2], True), f2
-    # its size where the compared stretch starts (the fit extrapolates the amplitude to the first anchor)
-    use = kw.get("use")
-    i0 = int(np.argmax(use.any(1))) if use is not None and use.any() else 0
-    t = run["t"]
-    size = np.linalg.norm(f1["decay"]["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / f1["decay"]["tau_s"])
-    if _decay_gain(f0, f1) < DECAY_CHI2 or size > DECAY_MAX_RAD:
+    if _decay_gain(f0, f1) < DECAY_CHI2 or size_where_compared(f1["decay"], run["t"], anchors, kw.get("use"))[0] > DECAY_MAX_RAD:
         return None, None
     return decay, fit_ref(run, noise_var, segs, anchors, *args, decay=decay, **kw)
+
+
+def size_where_compared(rec, t, anchors, use):
+    """A fitted decay's size [rad] where the compared stretch starts (at the first interval ``use``
+    keeps; the fit's amplitudes are extrapolated to the first anchor, far larger where the consistency
+    check left the start out), and that interval's index."""
+    i0 = int(np.argmax(use.any(1))) if use is not None and use.any() else 0
+    return float(np.linalg.norm(rec["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / rec["tau_s"])), i0
 
 
 def corrected_anchors(run, anchors, decay, theta):

@@ -14,6 +14,7 @@ walk, and the static segment.
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 from scipy import stats
@@ -26,9 +27,9 @@ from ...models._quaternion import (
     quat_multiply_np,
     rotation_matrix_np,
 )
-from ._decay import _decay_record, corrected_anchors, decay_terms, n_decay
+from ._decay import _decay_record, corrected_anchors, decay_profile, decay_terms, n_decay
 
-__all__ = ["reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
+__all__ = ["reference_fit", "reference_noise_var", "gyro_halves", "gls_agrees", "gls_holds", "test_se", "half_rate_fit", "cluster_cov", "rw_cov", "reml_drift", "static_segment", "convention_terms"]
 
 
 def _interval_sums(X, starts, ends):
@@ -507,3 +508,18 @@ def gls_agrees(fit_w, fit_g, z=GLS_AGREE_Z) -> bool:
     se = np.sqrt(np.maximum(np.diag(V)[idx], 0.0)) * math.sqrt(max(1.0, fit_w["chi2"] / fit_w["dof"]) if G < 3 else 1.0)
     ok = se > 0
     return bool(np.all(d[ok] <= z * se[ok]))
+
+
+def gls_holds(run, var_rate, one, use, ref_var, fit_w) -> bool:
+    """Whether the fit weighed by the reference's noise (GLS) agrees with the unweighted one ``fit_w``
+    (:func:`gls_agrees`; ``one``: constant biases' layout, the anchors, the sample variances),
+    also where it does with an estimator's decay fitted in both (:func:`._decay.decay_profile`,
+    profiled on the weighted fit): a converging reference's error is not white per row, but its decay
+    is a nuisance the fit carries."""
+    segs, anchors, sample_var = one
+    fg = reference_fit(run, var_rate, segs, anchors, sample_var, use=use, ref_var=ref_var)
+    if gls_agrees(fit_w, fg):
+        return True
+    dec = decay_profile(partial(reference_fit, ref_var=ref_var), fg, run, anchors, var_rate, *one, use=use)[0]
+    return bool(dec) and gls_agrees(reference_fit(run, var_rate, *one, use=use, decay=dec),
+                                    reference_fit(run, var_rate, *one, use=use, ref_var=ref_var, decay=dec))

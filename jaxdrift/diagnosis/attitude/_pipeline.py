@@ -65,8 +65,8 @@ from ._common import (
     Z_SIGNIFICANT,
     fmt,
 )
-from ._decay import decay_profile, decay_tail, without_decay
-from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reference_noise_var, gls_agrees,
+from ._decay import decay_profile, decay_tail, size_where_compared, without_decay
+from ._gyro import (cluster_cov, convention_terms, half_rate_fit, reference_fit, reference_noise_var, gls_holds,
                     gyro_halves, test_se, static_segment)
 from ._drift import drift_tests
 from ._noise import allan, estimate_white_noise, white_noise_recorded
@@ -217,7 +217,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
     settled = clock_settled(offset_left, float(np.median(np.diff(anchors))) * dt)
     fit_w = fit_ref(run, var_rate, *one, use=use) if settled else None
     ref_var = reference_noise_var(fit_w) if settled else 0.0
-    if ref_var > 0 and not _gls_holds(run, var_rate, one, use, ref_var, fit_w):
+    if ref_var > 0 and not gls_holds(run, var_rate, one, use, ref_var, fit_w):
         ref_var = 0.0
         notes.append("the reference's own noise is not weighed: its fit disagrees with the unweighted one (Hausman)")
     if ref_var > 0:
@@ -292,8 +292,8 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
         if held:
             fit0 = fit_ref(run, var_rate, [int_seg] * 3, anchors, sample_var, use=use,
                                  hold_scale=hold, hold_bias=_bias_idx(fit0, held))
-    decay, fit_ref, fit0, fit_drift, said_decay = _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg,
-                                                              sample_var, use, hold, held, ref_var)
+    decay, fit_ref, fit0, fit_drift, fit_const, said_decay = _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate,
+                                                                         int_seg, sample_var, use, hold, held, ref_var)
     notes += said_decay
     observed.append(f"reference attitude on {n_ref} rows ({int(use.any(1).sum())} of {n_int} intervals used)")
     if M >= 4:
@@ -303,10 +303,13 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
         drift = {}
         not_observed.append("gyro bias drift (reference spans too few intervals for bias segments)")
     seg_final = [int_seg if c in drift else np.zeros(n_int, int) for c in range(3)]
-    fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
-    if held:
-        fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
-                            hold_bias=_bias_idx(fit, held))
+    if decay and not drift:  # constant biases beside the decay: the fit its drift test was sized on
+        fit = fit_const
+    else:
+        fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold)
+        if held:
+            fit = fit_ref(run, var_rate, seg_final, anchors, sample_var, use=use, hold_scale=hold,
+                          hold_bias=_bias_idx(fit, held))
     fit["half_rate"] = half_rate_fit(run, var_rate, seg_final, anchors, sample_var, use=use,
                                      hold_scale=hold, ref_var=ref_var, decay=decay)
     infl = max(1.0, fit["chi2"] / fit["dof"])
@@ -334,7 +337,7 @@ def reference_step(run, n_ref, noise: GyroNoise, vib: Vibration | None, offset_l
 def _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg, sample_var, use, hold, held, ref_var):
     """An estimator converging (:func:`._decay.decay_profile`, or the tail of one the consistency check
     cut the start of, :func:`._decay.decay_tail`): ``(decay or None, the fit function with it, fit0 with
-    it, the fit the drift test reads, notes)``. A body-frame decay is a fading bias to segment biases
+    it, the fit the drift test reads, the fit with it over constant biases (None without it), notes)``. A body-frame decay is a fading bias to segment biases
     beside it: they take part of it, and what they take reads as a bias that wanders. So the drift
     test reads the segment biases of the reference with the decay, sized over constant biases, taken out."""
     t, n_int = run["t"], len(anchors) - 1
@@ -346,10 +349,9 @@ def _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg, sampl
         decay, fit_d = decay_tail(fit_ref, (conv["tau_s"], conv["frame"]), run, var_rate, [int_seg] * 3, anchors,
                                   sample_var, use=use, hold_scale=hold, held=tuple(held), **hb)
     if not decay:
-        return None, fit_ref, fit0, fit0, []
+        return None, fit_ref, fit0, fit0, None, []
     rec = fit_d["decay"]
-    i0 = int(np.argmax(use.any(1)))  # its size where the compared stretch starts
-    size = np.linalg.norm(rec["amplitude_rad"]) * math.exp(-(t[anchors[i0]] - t[anchors[0]]) / rec["tau_s"])
+    size, i0 = size_where_compared(rec, t, anchors, use)
     where = "at its start" if i0 == 0 else f"where it is compared from ({fmt(t[anchors[i0]] - t[0])} s)"
     turn = "" if rec["turn_rad"] is None else \
         f", its frame turned by a constant {fmt(math.degrees(np.linalg.norm(rec['turn_rad'])))} deg beside it"
@@ -358,26 +360,11 @@ def _converging(run, fit_ref, fit0, ref_spans, anchors, var_rate, int_seg, sampl
             "the gyro's effects")
     fit_ref = partial(fit_ref, decay=decay)
     fc = fit_ref(run, var_rate, [np.zeros(n_int, int)] * 3, anchors, sample_var, use=use, hold_scale=hold,
-                 **({"hold_bias": tuple(sorted(held))} if held else {}))
+                 hold_bias=tuple(sorted(held)))  # one bias per channel: channel c's is parameter c
     run_c = {**run, "q_ref": without_decay(run, fc["decay"], anchors[0])}
     fit_drift = reference_fit(run_c, var_rate, [int_seg] * 3, anchors, sample_var, use=use, hold_scale=hold,
                               ref_var=ref_var, **hb)
-    return decay, fit_ref, fit_d, fit_drift, [note]
-
-
-def _gls_holds(run, var_rate, one, use, ref_var, fit_w) -> bool:
-    """Whether the fit weighed by the reference's noise (GLS) agrees with the unweighted one ``fit_w``
-    (:func:`._gyro.gls_agrees`; ``one``: constant biases' layout, the anchors, the sample variances),
-    also where it does with an estimator's decay fitted in both (:func:`._decay.decay_profile`,
-    profiled on the weighted fit): a converging reference's error is not white per row, but its decay
-    is a nuisance the fit carries."""
-    segs, anchors, sample_var = one
-    fg = reference_fit(run, var_rate, segs, anchors, sample_var, use=use, ref_var=ref_var)
-    if gls_agrees(fit_w, fg):
-        return True
-    dec = decay_profile(partial(reference_fit, ref_var=ref_var), fg, run, anchors, var_rate, *one, use=use)[0]
-    return bool(dec) and gls_agrees(reference_fit(run, var_rate, *one, use=use, decay=dec),
-                                    reference_fit(run, var_rate, *one, use=use, ref_var=ref_var, decay=dec))
+    return decay, fit_ref, fit_d, fit_drift, fc, [note]
 
 
 def _bias_idx(fit, channels):
