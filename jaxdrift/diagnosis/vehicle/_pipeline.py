@@ -111,8 +111,6 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
             f"the causes chosen it moves or stops being a mass on a spring (unmodelled_mode not named); the "
             f"model may lack something else.")}
         prob, sel0, form0 = first
-    elif mode is not None:
-        prob = prob.with_pipe(carrying(prob.pipe, mode))
     # a parameter error on an axle whose law the adequacy test of sel0's fit finds nonlinear but
     # cannot size stands in for that law: not confirmed (``_confirm.stand_in_targets``)
     sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log, stand_in_targets(form0))
