@@ -171,6 +171,34 @@ def carrying(pipe, mode: Mode | None):
     return pipe.with_mode(mode, None if mode is None else mode_response(pipe, mode))
 
 
+def mode_shift_var(prob, fit, mode: Mode, half_hz: float) -> np.ndarray:
+    """Per linear cause of ``fit`` (chosen beside ``mode``, which ``prob``'s pipe carries), the
+    variance its parameter takes from the mode's own frequency error: the shift of the causes as the
+    mode's frequency moves (its mass, place and damping refitted with them: the regression of the
+    frequency's column on theirs) times the frequency's standard error, ``half_hz / 1.96`` (its
+    interval of :func:`mode_finding`: the noise's, the halves' disagreement or the search's move).
+    A cause sized beside a mode is only as sure as the mode (``vehicle-modes/indep`` run 8: the mode
+    0.5 % low in frequency moved k3 by 0.05 %, twice its interval from the force noise alone)."""
+    X = fit.X
+    if X is None or not fit.causes or half_hz <= 0:
+        return np.zeros(len(fit.causes))
+
+    def col(md: Mode) -> np.ndarray:
+        parts = mode_response(prob.pipe, md)
+        return np.concatenate([parts[nm][prob.skip[nm]:prob.skip[nm] + prob.rows[nm]] / prob.noise_std[nm]
+                               if nm in parts else np.zeros(prob.rows[nm]) for nm in prob.names])
+
+    def d(name, step):
+        return (col(replace(mode, **{name: getattr(mode, name) + step}))
+                - col(replace(mode, **{name: getattr(mode, name) - step}))) / (2 * step)
+
+    A = np.column_stack([X, d("mass", 1e-3 * mode.mass), d("x", 1e-3), d("zeta", 1e-3 * max(mode.zeta, 0.01))])
+    sc = np.linalg.norm(A, axis=0)
+    sc[sc == 0] = 1.0
+    beta = np.linalg.lstsq(A / sc, d("freq_hz", 1e-4 * mode.freq_hz), rcond=None)[0] / sc
+    return (beta[: X.shape[1]] * half_hz / 1.96) ** 2
+
+
 def can_show(pipe) -> bool:
     """A mode shows only where pitch and heave are both measured (the acceleration under any place
     of the body is known)."""

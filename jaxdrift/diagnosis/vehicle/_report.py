@@ -15,6 +15,7 @@ from ._confirm import OOS_STRETCHES
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_shared,
                          force_top_band_white,
                          lowband_cutoff, written_digits)
+from ._mode import mode_shift_var
 from ._problem import _Problem
 from ._residuals import Residuals
 from ._residuals import kept as _kept
@@ -254,16 +255,23 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
 
 
 def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma: float,
-                   only=None) -> list[dict]:
+                   only=None, mode=None) -> list[dict]:
     """One finding per chosen cause (an equal offset on both forces: one per channel), with the
     evidence sentence: the RMS of the channel where the cause shows most, without the cause and
-    with it (the other causes kept). ``only``: the causes to write findings for (default all)."""
+    with it (the other causes kept). ``only``: the causes to write findings for (default all).
+    ``mode``: ``(Mode, its finding)`` where the model carries one: each interval carries the mode's
+    own frequency error too (``_mode.mode_shift_var``)."""
     pipe = prob.pipe
     fit = sel.fit
     dynamic = len(fit.r) > 2
     names = prob.names
     main = "moment" if "moment" in names else next((nm for nm in names if nm != "static"), "static")
-    se = np.sqrt(np.maximum(np.diag(sel.cov), 0.0)) if len(fit.causes) else np.zeros(0)
+    var = np.maximum(np.diag(sel.cov), 0.0) if len(fit.causes) else np.zeros(0)
+    extra = np.zeros(len(var))
+    if mode is not None and len(var):
+        iv = mode[1]["interval"]
+        extra = mode_shift_var(prob, fit, mode[0], 0.5 * (iv[1] - iv[0]))
+    se = np.sqrt(var + extra)
     findings = []
     for i, c in enumerate(fit.causes):
         if only is not None and c not in only:
@@ -284,7 +292,9 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
         for tgt in targets:
             f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i],
                              _practical(c, pipe))
-            f["evidence"] = ev + "."
+            f["evidence"] = ev + (f"; its interval carries the unmodelled mode's frequency error (a standard error "
+                                  f"{math.sqrt(extra[i]) / max(math.sqrt(var[i] + extra[i]), 1e-300):.0%} of its own)"
+                                  if extra[i] > var[i] else "") + "."
             f["z"] = float(abs(sel.z[i]))
             f["residual"] = {"channel": ch_i, "rms_without": float(a_rms), "rms_with": float(b_rms),
                              "unit": _CHANNEL_UNITS[ch_i],
@@ -396,7 +406,7 @@ def enforced_terms(prob: "_Problem", model: dict, res0: "Residuals") -> dict:
 
 
 def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
-                         held_out: list, resim_out: list) -> list[dict]:
+                         held_out: list, resim_out: list, mode=None) -> list[dict]:
     """The findings of the causes a check did not confirm (the halves check of
     ``_confirm.confirm_corrections``, the re-simulation of ``_confirm.confirm_by_resimulation``). Each keeps
     its estimate and interval from the fit that selected it (all selected causes present), is
@@ -446,7 +456,7 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
     fit0 = sel0.fit
     p0, corr0 = _apply(model, fit0.causes, fit0.theta)
     res_all = prob.pipe.residuals(p0, corr0)
-    out = cause_findings(prob, sel0, model, res_all, sigma, only=set(reasons))
+    out = cause_findings(prob, sel0, model, res_all, sigma, only=set(reasons), mode=mode)
     for f in out:
         c = next(c for c in reasons if c.kind.name == f["cause"]
                  and c.target in (f.get("channel"), f.get("parameter"), "both"))
@@ -481,10 +491,11 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
 
     # findings: the confirmed causes (in the extended model), then those a check did not confirm
     corrections = corr_ext
-    findings = cause_findings(prob, sel, model, res1, sigma)
+    mode = form.get("mode")
+    findings = cause_findings(prob, sel, model, res1, sigma, mode=mode)
     for f in findings:
         f["confirmed"] = True
-    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out)
+    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out, mode)
     if not dynamic and sigma > 0:
         static, corrections = static_findings(res0, sigma, corrections)
         findings += static
@@ -509,7 +520,6 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
                       f"comparison's own error.")
     floor_bound = None if (noise["found"] or sigma >= NOISE_CONFIRMED_MIN_N) else FORCE_NOISE.finding(
         sigma, 0.0, b, "upper_bound", floor_text)
-    mode = form.get("mode")
     findings = ([] if mode is None else [mode[1]]) + [{**d.finding(det), "confirmed": True} for d, det in detected] \
         + form["findings"] + findings
     findings = _stand_ins(findings, form.get("unseen") or [])
