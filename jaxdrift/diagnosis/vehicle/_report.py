@@ -292,8 +292,8 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
         for tgt in targets:
             f = _finding_for(Cause(c.kind, tgt) if c.target == "both" else c, fit.theta[i], se[i],
                              _practical(c, pipe))
-            f["evidence"] = ev + (f"; its interval carries the unmodelled mode's frequency error (a standard error "
-                                  f"{math.sqrt(extra[i]) / max(math.sqrt(var[i] + extra[i]), 1e-300):.0%} of its own)"
+            f["evidence"] = ev + (f"; its interval carries the unmodelled mode's frequency error ("
+                                  f"{extra[i] / max(var[i] + extra[i], 1e-300):.0%} of its variance)"
                                   if extra[i] > var[i] else "") + "."
             f["z"] = float(abs(sel.z[i]))
             f["residual"] = {"channel": ch_i, "rms_without": float(a_rms), "rms_with": float(b_rms),
