@@ -177,8 +177,10 @@ def mode_shift_var(prob, fit, mode: Mode, half_hz: float) -> np.ndarray:
     mode's frequency moves (its mass, place and damping refitted with them: the regression of the
     frequency's column on theirs) times the frequency's standard error, ``half_hz / 1.96`` (its
     interval of :func:`mode_finding`: the noise's, the halves' disagreement or the search's move).
-    A cause sized beside a mode is only as sure as the mode (``vehicle-modes/indep`` run 8: the mode
-    0.5 % low in frequency moved k3 by 0.05 %, twice its interval from the force noise alone)."""
+    A cause sized beside a mode is only as sure as the mode (``vehicle-modes/indep`` run 8: k3 read
+    0.98623 beside the mode fitted, 0.98662 beside the true one, for 0.98680; its interval from the
+    force noise alone, [0.98596, 0.98649], missed). The frequency's interval holds the search's move
+    to the final size, so this errs wide: run 27's d3, 1.00553 for 1.00556, reads [0.983, 1.028]."""
     X = fit.X
     if X is None or not fit.causes or half_hz <= 0:
         return np.zeros(len(fit.causes))
