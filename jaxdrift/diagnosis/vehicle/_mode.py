@@ -175,12 +175,10 @@ def mode_shift_var(prob, fit, mode: Mode, half_hz: float) -> np.ndarray:
     """Per linear cause of ``fit`` (chosen beside ``mode``, which ``prob``'s pipe carries), the
     variance its parameter takes from the mode's own frequency error: the shift of the causes as the
     mode's frequency moves (its mass, place and damping refitted with them: the regression of the
-    frequency's column on theirs) times the frequency's standard error, ``half_hz / 1.96`` (its
-    interval of :func:`mode_finding`: the noise's, the halves' disagreement or the search's move).
-    A cause sized beside a mode is only as sure as the mode (``vehicle-modes/indep`` run 8: k3 read
-    0.98623 beside the mode fitted, 0.98662 beside the true one, for 0.98680; its interval from the
-    force noise alone, [0.98596, 0.98649], missed). The frequency's interval holds the search's move
-    to the final size, so this errs wide: run 27's d3, 1.00553 for 1.00556, reads [0.983, 1.028]."""
+    frequency's column on theirs) times the frequency's standard error, ``half_hz / 1.96``
+    (:func:`settled_half`). A cause sized beside a mode is only as sure as the mode. Not with the
+    reported interval, which holds the search's move to the final size: ``vehicle-modes/indep`` run
+    27's d3, 1.00553 for 1.00556, then read [0.983, 1.028] while confirmed."""
     X = fit.X
     if X is None or not fit.causes or half_hz <= 0:
         return np.zeros(len(fit.causes))
@@ -199,6 +197,25 @@ def mode_shift_var(prob, fit, mode: Mode, half_hz: float) -> np.ndarray:
     sc[sc == 0] = 1.0
     beta = np.linalg.lstsq(A / sc, d("freq_hz", 1e-4 * mode.freq_hz), rcond=None)[0] / sc
     return (beta[: X.shape[1]] * half_hz / 1.96) ** 2
+
+
+def settled_half(prob, fit, mode: Mode) -> float:
+    """The half-width [Hz] of ``mode``'s frequency as sized beside the causes of ``fit`` (the
+    model of ``prob`` carries it): the wider of 1.96 standard errors from the force noise and the
+    disagreement of its refits on alternate stretches of the record (:func:`_halves`), both at the
+    final causes; the search's move to this size (which the reported interval holds) is no error
+    of it."""
+    from ._causes import _apply
+
+    pipe = carrying(prob.pipe, None)
+    p, corr = _apply(prob.model, fit.causes, fit.theta)
+    pr = prob.with_pipe(pipe)
+    r = prob.weighted(pipe.residuals(p, corr))
+    X = fit.X if fit.X is not None and fit.causes else np.zeros((len(r), 0))
+    search = _Search(pr, r, X)
+    _, se_f = _z(search, mode, max(_force_hf_noise(pipe.run)[0], 1e-9))
+    f0, f1 = _halves(pr, r, X, p, mode, search)["freqs"]
+    return max(1.96 * se_f, abs(f0 - f1))
 
 
 def can_show(pipe) -> bool:

@@ -15,7 +15,7 @@ from ._confirm import OOS_STRETCHES
 from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_shared,
                          force_top_band_white,
                          lowband_cutoff, written_digits)
-from ._mode import mode_shift_var
+from ._mode import mode_shift_var, settled_half
 from ._problem import _Problem
 from ._residuals import Residuals
 from ._residuals import kept as _kept
@@ -269,8 +269,7 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
     var = np.maximum(np.diag(sel.cov), 0.0) if len(fit.causes) else np.zeros(0)
     extra = np.zeros(len(var))
     if mode is not None and len(var):
-        iv = mode[1]["interval"]
-        extra = mode_shift_var(prob, fit, mode[0], 0.5 * (iv[1] - iv[0]))
+        extra = mode_shift_var(prob, fit, mode[0], settled_half(prob, fit, mode[0]))
     se = np.sqrt(var + extra)
     findings = []
     for i, c in enumerate(fit.causes):
