@@ -205,17 +205,23 @@ def settled_half(prob, fit, mode: Mode) -> float:
     disagreement of its refits on alternate stretches of the record (:func:`_halves`), both at the
     final causes; the search's move to this size (which the reported interval holds) is no error
     of it."""
+    pr, p, r, X = _beside(prob, fit)
+    search = _Search(pr, r, X)
+    _, se_f = _z(search, mode, max(_force_hf_noise(pr.pipe.run)[0], 1e-9))
+    f0, f1 = _halves(pr, r, X, p, mode, search)["freqs"]
+    return max(1.96 * se_f, abs(f0 - f1))
+
+
+def _beside(prob, fit):
+    """What a mode is sized on beside the causes of ``fit``: ``(the problem on the rigid model, the
+    fitted model, its weighted residual, the causes' columns as nuisance)``."""
     from ._causes import _apply
 
     pipe = carrying(prob.pipe, None)
     p, corr = _apply(prob.model, fit.causes, fit.theta)
-    pr = prob.with_pipe(pipe)
     r = prob.weighted(pipe.residuals(p, corr))
     X = fit.X if fit.X is not None and fit.causes else np.zeros((len(r), 0))
-    search = _Search(pr, r, X)
-    _, se_f = _z(search, mode, max(_force_hf_noise(pipe.run)[0], 1e-9))
-    f0, f1 = _halves(pr, r, X, p, mode, search)["freqs"]
-    return max(1.96 * se_f, abs(f0 - f1))
+    return prob.with_pipe(pipe), p, r, X
 
 
 def can_show(pipe) -> bool:
@@ -552,14 +558,9 @@ def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode | None:
     part of a mode's mass (a body mass error is a mode's far-above-resonance limit). None where the
     refit is no longer :func:`plausible` or its frequency moved by more than ``FREQ_AGREE``: the
     mode and the chosen causes then trade one for another, and the mode is not shown."""
-    from ._causes import _apply
-
-    pipe = carrying(prob.pipe, None)
-    p, corr = _apply(prob.model, fit.causes, fit.theta)
-    r = prob.weighted(pipe.residuals(p, corr))
-    X = fit.X if fit.X is not None and fit.causes else np.zeros((len(r), 0))
-    new, _ = fit_mode(prob.with_pipe(pipe), r, X, p, start=mode)
-    ok = plausible(new, p, _band_hi(pipe)) and abs(new.freq_hz - mode.freq_hz) <= FREQ_AGREE * mode.freq_hz
+    pr, p, r, X = _beside(prob, fit)
+    new, _ = fit_mode(pr, r, X, p, start=mode)
+    ok = plausible(new, p, _band_hi(pr.pipe)) and abs(new.freq_hz - mode.freq_hz) <= FREQ_AGREE * mode.freq_hz
     if log is not None:
         log.append(f"unmodelled mode resized beside {[c.label for c in fit.causes]}: {new.freq_hz:.4g} Hz zeta "
                    f"{new.zeta:.3g} x {new.x:.3g} m mass {new.mass:.4g} kg" + ("" if ok else ": withdrawn"))

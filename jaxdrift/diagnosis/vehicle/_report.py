@@ -259,8 +259,8 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
     """One finding per chosen cause (an equal offset on both forces: one per channel), with the
     evidence sentence: the RMS of the channel where the cause shows most, without the cause and
     with it (the other causes kept). ``only``: the causes to write findings for (default all).
-    ``mode``: ``(Mode, its finding)`` where the model carries one: each interval carries the mode's
-    own frequency error too (``_mode.mode_shift_var``)."""
+    ``mode``: the ``Mode`` the model carries, if any: each interval carries its frequency error too
+    (``_mode.mode_shift_var``)."""
     pipe = prob.pipe
     fit = sel.fit
     dynamic = len(fit.r) > 2
@@ -269,7 +269,7 @@ def cause_findings(prob: "_Problem", sel, model: dict, res1: "Residuals", sigma:
     var = np.maximum(np.diag(sel.cov), 0.0) if len(fit.causes) else np.zeros(0)
     extra = np.zeros(len(var))
     if mode is not None and len(var):
-        extra = mode_shift_var(prob, fit, mode[0], settled_half(prob, fit, mode[0]))
+        extra = mode_shift_var(prob, fit, mode, settled_half(prob, fit, mode))
     se = np.sqrt(var + extra)
     findings = []
     for i, c in enumerate(fit.causes):
@@ -490,11 +490,12 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
 
     # findings: the confirmed causes (in the extended model), then those a check did not confirm
     corrections = corr_ext
-    mode = form.get("mode")
-    findings = cause_findings(prob, sel, model, res1, sigma, mode=mode)
+    mode = form.get("mode")  # (Mode, its finding) or None
+    carried = None if mode is None else mode[0]
+    findings = cause_findings(prob, sel, model, res1, sigma, mode=carried)
     for f in findings:
         f["confirmed"] = True
-    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out, mode)
+    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out, carried)
     if not dynamic and sigma > 0:
         static, corrections = static_findings(res0, sigma, corrections)
         findings += static
