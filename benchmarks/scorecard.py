@@ -116,6 +116,8 @@ WORLDS = [
     World("vehicle-standard/own", "vehicle", "own_vehicle", 20261210, 12, 2),
     World("vehicle-exudyn/indep", "vehicle", "exudyn", 20261217, 12, 1),
     World("vehicle-modes/indep", "vehicle", "exudyn", 20261218, 32, 2, {"design": "modes"}),
+    # a chassis with a first bending mode (15-30 Hz), the model given the rigid car (issue #48)
+    World("vehicle-bending/indep", "vehicle", "exudyn", 20261221, 30, 0, {"design": "bending"}),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
     # a second draw of the wide design, added after the first was tuned on (never tuned on itself)
@@ -154,7 +156,7 @@ def cases(world: World) -> list[dict]:
     if b == "exudyn":
         from benchmarks.validation import gen_exudyn as ge
 
-        return (ge.design_modes if o.get("design") == "modes" else ge.design)(world.n, world.seed)
+        return {"modes": ge.design_modes, "bending": ge.design_bending}.get(o.get("design"), ge.design)(world.n, world.seed)
     if b == "indep_clip":
         from benchmarks.validation import gen_vehicle as gv
 
@@ -246,10 +248,14 @@ def run_case(world_name: str, case: dict) -> dict:
             paths = ge.make_run(case, tmp)
             full = paths["case"]
             rep = _diagnose_vehicle(paths["csv"], paths["model"])
-            e = full["engine"]
-            # the mass on its own spring is the run's first systematic effect (its frequency the value)
+            e = full["engine"] or full.get("bending")
+            # the mass on its own spring (or the chassis's bending) is the run's first systematic
+            # effect (its frequency the value)
             mode = [] if e is None else [{"cause": "unmodelled_mode", "value": e["frequency_hz"]}]
             body = "rigid car" if e is None else (
+                f"bending chassis, front part {100 * e['share']:.0f} %, hinge {e['x_hinge']:.2f} m ahead, "
+                f"{e['frequency_hz']:.1f} Hz (free {e['free_hz']:.1f} Hz, damping ratio {e['damping_ratio']:.2f})"
+                if e.get("kind") == "bending" else
                 f"{e.get('kind', 'engine')} {100 * e['mass'] / full['car']['m3']:.0f} % on {e['frequency_hz']:.1f} Hz "
                 f"mounts {e['x']:.2f} m ahead")
             rec.update(stratum=case["stratum"], truth=mode + full["effects"], model_form=e,

@@ -35,16 +35,22 @@ from benchmarks.validation import gen_vehicle as gv  # noqa: E402
 
 
 def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float, substeps: int = 10,
-                    engine: dict | None = None, fine: bool = False) -> dict:
+                    engine: dict | None = None, fine: bool = False, bending: dict | None = None) -> dict:
     """Chassis heave (at its own centre of mass) and pitch, wheel travel and rates at ``fs`` on
     [0, t_end] (t = 0: static equilibrium); ``fine``: at every solver step instead. ``engine``: a
     mass ``mass`` on a vertical mount (``k``, ``d``) at ``x`` ahead of the chassis's centre of
     mass, in static equilibrium at the start (its weight carried by the chassis's, so the wheel
-    loads are those of the rigid car of total mass); adds ``ze``, its height."""
+    loads are those of the rigid car of total mass); adds ``ze``, its height. ``bending``: the chassis
+    is two rigid bodies (``split_chassis``) on a hinge with a rotational spring-damper, preloaded
+    so that the rigid car's static pose is its equilibrium (``bend0`` [rad], if given, moves the
+    equilibrium's bend by it: the car starts bent, to ring); ``z3`` and ``beta`` are then the height
+    of the point the car's centre of mass is at and the rotation of the part that holds it (where a
+    pitch sensor sits), and ``y1``/``y2`` the chassis points above the wheels."""
     import exudyn as exu
     from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
                                       MarkerNodePosition, MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
                                       ObjectRigidBody2D, SensorNode)
+    from exudyn.itemInterface import CoordinateSpringDamper, MarkerNodeCoordinate, RevoluteJoint2D
 
     a, b, g = p["a"], p["b"], p["g"]
     rigid = p if engine is None else rigid_equivalent(p, engine)
@@ -53,13 +59,32 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     z3 = zc + xc * math.sin(beta)  # the chassis body's own centre of mass, xc behind the whole car's
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
-    n3 = mbs.AddNode(NodeRigidBody2D(referenceCoordinates=[0.0, 0.0, 0.0], initialCoordinates=[0.0, z3, -beta]))
-    body = mbs.AddObject(ObjectRigidBody2D(mass=p["m3"], inertia=p["I"], nodeNumber=n3))
+    parts = [{"m": p["m3"], "I": p["I"], "x": 0.0, "lo": -math.inf}] if bending is None else split_chassis(p, bending)
+    for q in parts:  # each rigid part of the chassis at the rigid car's static pose
+        q["node"] = mbs.AddNode(NodeRigidBody2D(
+            referenceCoordinates=[q["x"], 0.0, 0.0],
+            initialCoordinates=[q["x"] * (math.cos(beta) - 1.0), z3 - q["x"] * math.sin(beta), -beta]))
+        q["body"] = mbs.AddObject(ObjectRigidBody2D(mass=q["m"], inertia=q["I"], nodeNumber=q["node"]))
+
+    def on_chassis(x):  # the part the chassis point x ahead of the centre of mass is on, its local position
+        q = max((q for q in parts if q["lo"] <= x), key=lambda q: q["lo"])
+        return q, [x - q["x"], 0.0, 0.0]
+    n3, body = parts[0]["node"], parts[0]["body"]
+    if bending is not None:  # the hinge, and its spring preloaded by the front part's static moment about it
+        rear, front = parts
+        xh = bending["x_hinge"]
+        mbs.AddObject(RevoluteJoint2D(markerNumbers=[
+            mbs.AddMarker(MarkerBodyPosition(bodyNumber=q["body"], localPosition=[xh - q["x"], 0.0, 0.0])) for q in parts]))
+        s_front = p["m3"] * g * a / (a + b)
+        tau = (front["m"] * g * (front["x"] - xh) - s_front * (b - xh)) * math.cos(beta)
+        mbs.AddObject(CoordinateSpringDamper(
+            markerNumbers=[mbs.AddMarker(MarkerNodeCoordinate(nodeNumber=q["node"], coordinate=2)) for q in parts],
+            stiffness=bending["k"], damping=bending["d"], offset=-tau / bending["k"] + bending.get("bend0", 0.0)))
     wheels = []
     for x, z, m in ((b, z1, p["m1"]), (-a, z2, p["m2"])):
         n = mbs.AddNode(NodePoint2D(referenceCoordinates=[x, 0.0], initialCoordinates=[0.0, z]))
         wheels.append((n, mbs.AddObject(MassPoint2D(mass=m, nodeNumber=n))))
-    bodies = [body, wheels[0][1], wheels[1][1]]
+    bodies = [q["body"] for q in parts] + [wheels[0][1], wheels[1][1]]
     if engine is not None:
         ye = z3 - engine["x"] * math.sin(beta) + engine["mass"] * g / engine["k"]
         ne = mbs.AddNode(NodePoint2D(referenceCoordinates=[engine["x"], 0.0], initialCoordinates=[0.0, ye]))
@@ -74,11 +99,14 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
         return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
                                         outputVariableType=getattr(exu.OutputVariableType, what)))
     sensors = [sensor(n3, "Coordinates")]
+    if bending is not None:
+        sensors += [sensor(q["node"], "Coordinates") for q in parts]
     if engine is not None:
         sensors.append(sensor(ne, "Coordinates"))
     for i, ((n, _), x) in enumerate(zip(wheels, (b, -a))):  # each wheel under its chassis point
         mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
-        mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[x, 0.0, 0.0]))
+        q, local = on_chassis(x)
+        mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=q["body"], localPosition=local))
         k, d = (p["k3"], p["d3"]) if i == 0 else (p["k4"], p["d4"])
         # the wheel first: displacement chassis point - wheel = the paper's spring travel s_i
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, k, 0.0], damping=[0.0, d, 0.0]))
@@ -106,10 +134,63 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     data = [mbs.GetSensorStoredData(k) for k in sensors]
     ch = data[0]
     out = {"t": ch[:, 0], "z3": ch[:, 2], "beta": -ch[:, 3]}
+    if bending is not None:
+        for q, d in zip(parts, data[1:3]):
+            q["y"], q["phi"] = d[:, 2], d[:, 3]
+        home, _ = on_chassis(0.0)
+        out.update(z3=home["y"] - home["x"] * np.sin(home["phi"]), beta=-home["phi"])
+        for k, x in (("y1", b), ("y2", -a)):
+            q, local = on_chassis(x)
+            out[k] = q["y"] + local[0] * np.sin(q["phi"])
+        data = [data[0]] + data[3:]
     if engine is not None:
         out["ze"] = data[1][:, 2]
         data = data[1:]
     out.update(z1=data[1][:, 2], v1=data[2][:, 2], z2=data[3][:, 2], v2=data[4][:, 2])
+    return out
+
+
+def split_chassis(p: dict, bending: dict) -> list[dict]:
+    """The two rigid parts (rear, front) of a bending chassis whose mass ``m3``, centre of mass and
+    inertia ``I`` (undeformed) are the rigid car's: the front part ``share`` of the mass, the parts'
+    centres at ``lam r sqrt(m_other / m_own)`` ahead of and behind the car's (``r`` its radius of
+    gyration: ``lam ** 2`` of ``I`` is in the parts' places, the rest their own inertia, by mass),
+    the front part ahead of the hinge at ``x_hinge``. Each: mass ``m``, inertia ``I``, centre
+    ``x``, and ``lo`` the chassis's first point on it."""
+    m3, I, lam = p["m3"], p["I"], bending["lam"]
+    mf = bending["share"] * m3
+    mr = m3 - mf
+    r = math.sqrt(I / m3)
+    own = (1.0 - lam * lam) * I / m3
+    return [{"m": mr, "I": own * mr, "x": -lam * r * math.sqrt(mf / mr), "lo": -math.inf},
+            {"m": mf, "I": own * mf, "x": lam * r * math.sqrt(mr / mf), "lo": bending["x_hinge"]}]
+
+
+def bending_modes(p: dict, bending: dict) -> dict:
+    """Undamped modes of the bending chassis (linear, about the static pose; our own small model,
+    not Exudyn's): ``free_hz`` the free chassis's bending frequency per unit hinge stiffness's
+    square root (``k = (2 pi f) ** 2 / unit``), and, where ``bending`` has ``k``, ``car_hz``: the
+    frequency of the whole car's mode with the largest share of its potential energy in the hinge
+    (what a resonance in the run shows), and its ``hinge_share``. Coordinates: the hinge's height,
+    each part's rotation, the wheels' heights."""
+    rear, front = split_chassis(p, bending)
+    xh, a, b = bending["x_hinge"], p["a"], p["b"]
+    rows = [(front["m"], [1, front["x"] - xh, 0, 0, 0]), (front["I"], [0, 1, 0, 0, 0]),
+            (rear["m"], [1, 0, rear["x"] - xh, 0, 0]), (rear["I"], [0, 0, 1, 0, 0]),
+            (p["m1"], [0, 0, 0, 1, 0]), (p["m2"], [0, 0, 0, 0, 1])]
+    M = sum(m * np.outer(j, j) for m, j in rows)
+    hinge = np.array([0, 1, -1, 0, 0], float)
+    unit = np.linalg.eigvals(np.linalg.solve(M[:3, :3], np.outer(hinge, hinge)[:3, :3])).real.max()
+    out = {"unit": float(unit)}
+    if "k" in bending:
+        springs = [(bending["k"], hinge), (p["k3"], np.array([1, b - xh, 0, -1, 0], float)),
+                   (p["k4"], np.array([1, 0, -a - xh, 0, -1], float)), (p["k1"], np.array([0, 0, 0, 1, 0], float)),
+                   (p["k2"], np.array([0, 0, 0, 0, 1], float))]
+        K = sum(k * np.outer(j, j) for k, j in springs)
+        w2, V = np.linalg.eig(np.linalg.solve(M, K))
+        share = [bending["k"] * (hinge @ V[:, i].real) ** 2 / (V[:, i].real @ K @ V[:, i].real) for i in range(5)]
+        i = int(np.argmax(share))
+        out.update(car_hz=float(math.sqrt(w2[i].real) / (2 * math.pi)), hinge_share=float(share[i]))
     return out
 
 

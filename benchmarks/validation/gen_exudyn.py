@@ -28,7 +28,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from benchmarks.validation import gen_vehicle as gv
-from benchmarks.validation.exudyn_halfcar import rigid_equivalent, simulate_exudyn
+from benchmarks.validation.exudyn_halfcar import bending_modes, rigid_equivalent, simulate_exudyn
 
 SUBSTEPS = 10
 
@@ -74,6 +74,44 @@ def design_modes(n: int, seed: int) -> list[dict]:
     return out
 
 
+#: the bending chassis (``design_bending``): the front part's share of the body's mass, the parts'
+#: places (``exudyn_halfcar.split_chassis``), the hinge (share of the radius of gyration ahead of
+#: the centre of mass, either side), the free chassis's first bending frequency [Hz] and damping ratio
+BENDING = {"share": (0.4, 0.6), "lam": (0.6, 0.8), "hinge": (0.05, 0.3), "freq": (15.0, 30.0), "zeta": (0.02, 0.08)}
+
+
+def design_bending(n: int, seed: int) -> list[dict]:
+    """``n`` cases of the bending-chassis world (issue 48's chassis with a first bending mode at
+    15-30 Hz, the model given the rigid car of the same mass, centre of mass and inertia): a third
+    each alone with force noise, with one sensor effect, or with an error of a chassis spring or
+    damper."""
+    rng = np.random.default_rng([seed, 0xE42])
+    kinds = ("noise", "single", "param")
+    order = rng.permutation(n)
+    out = []
+    for i, j in enumerate(order):
+        stratum = kinds[j % 3]
+        what = [list(gv.SENSOR[int(rng.integers(len(gv.SENSOR)))])] if stratum == "single" else (
+            [["parameter_error", MODE_PARAMS[int(rng.integers(len(MODE_PARAMS)))]]] if stratum == "param" else [])
+        out.append({"index": i, "stratum": f"bending/{stratum}", "what": what, "seed": int(rng.integers(2**31)),
+                    "design": "bending"})
+    return out
+
+
+def _bending(rng, car: dict) -> dict:
+    """A bending chassis for ``car`` (``BENDING``), its hinge spring set for the drawn free frequency;
+    ``frequency_hz`` is the whole car's mode that bends the hinge (``bending_modes``)."""
+    B = BENDING
+    r = math.sqrt(car["I"] / car["m3"])
+    bd = {"share": float(rng.uniform(*B["share"])), "lam": float(rng.uniform(*B["lam"])),
+          "x_hinge": float(rng.choice([-1.0, 1.0]) * rng.uniform(*B["hinge"]) * r)}
+    f, zeta = float(rng.uniform(*B["freq"])), float(rng.uniform(*B["zeta"]))
+    k = (2 * math.pi * f) ** 2 / bending_modes(car, bd)["unit"]
+    bd.update(k=k, d=2 * zeta * k / (2 * math.pi * f), free_hz=f, damping_ratio=zeta, kind="bending")
+    bd["frequency_hz"] = bending_modes(car, bd)["car_hz"]
+    return bd
+
+
 def _mount(rng, car: dict, kind: str) -> dict | None:
     """A mass on its spring of the kind ``kind`` (``MOUNTS``), or None for the rigid car."""
     if kind == "rigid":
@@ -93,8 +131,11 @@ def make_case(case: dict) -> dict:
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     car = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
     car["g"] = gv.G
+    bending = None
     if case.get("design") == "modes":
         engine = _mount(rng, car, case["mount"])
+    elif case.get("design") == "bending":
+        engine, bending = None, _bending(rng, car)
     else:  # the first world's draws, unchanged
         me = float(rng.uniform(0.08, 0.12) * car["m3"])
         f_mount = float(rng.uniform(8.0, 15.0))
@@ -114,7 +155,8 @@ def make_case(case: dict) -> dict:
         if e["cause"] == "parameter_error":
             true_car[e["parameter"]] = car[e["parameter"]] * e["value"]
     effects.append({"cause": "force_noise", "value": float(math.exp(rng.uniform(math.log(0.5), math.log(3.0))))})
-    return {**case, "vehicle_kind": vkind, "car": true_car, "engine": engine, "model": model, "road_class": cls,
+    return {**case, "vehicle_kind": vkind, "car": true_car, "engine": engine, "bending": bending, "model": model,
+            "road_class": cls,
             "road_interp": str(rng.choice(["spline7", "linear"])), "speed": speed, "fs": fs, "duration": dur,
             "channels": chans, "channel_set": "_".join(chans), "precision": int(rng.integers(7, 10)), "t0": 0.0,
             "lead_in": float(rng.uniform(0.2, 0.5)), "effects": effects, "motion_noise": {},
@@ -128,7 +170,7 @@ def generate(case: dict) -> dict:
     x0 = -v * case["lead_in"]
     road = gv.FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.2) + 1.0,
                            interp=case["road_interp"])
-    sim = simulate_exudyn(car, road, v, x0, T, fs, SUBSTEPS, engine=eng, fine=True)
+    sim = simulate_exudyn(car, road, v, x0, T, fs, SUBSTEPS, engine=eng, fine=True, bending=case.get("bending"))
     tf = sim["t"]
     L = car["a"] + car["b"]
     e1, de1 = np.array([road(x0 + v * t) for t in tf]).T
@@ -139,8 +181,11 @@ def generate(case: dict) -> dict:
     sb = np.sin(sim["beta"])
     fine["z3"] = sim["z3"] - xc * sb  # the rigid car's centre of mass, on the chassis
     fine["beta"] = sim["beta"]
-    fine["s1"] = sim["z3"] - sim["z1"] - car["b"] * sb
-    fine["s2"] = sim["z3"] - sim["z2"] + car["a"] * sb
+    if case.get("bending"):  # the travel between the wheel and the chassis point above it
+        fine["s1"], fine["s2"] = sim["y1"] - sim["z1"], sim["y2"] - sim["z2"]
+    else:
+        fine["s1"] = sim["z3"] - sim["z1"] - car["b"] * sb
+        fine["s2"] = sim["z3"] - sim["z2"] + car["a"] * sb
     n = int(round(T * fs)) + 1
     tau = np.arange(n) / fs
     idx = np.arange(n) * SUBSTEPS
