@@ -24,7 +24,8 @@ def _as_truth(f: dict, truth: set) -> tuple:
     model cannot explain there without forcing it into a candidate)."""
     if f["cause"] == "model_form":
         for t in truth:
-            if t[0] in _NONLINEAR and _AXLE.get(t[1]) == f.get("axle"):
+            if (t[0] in _NONLINEAR and _AXLE.get(t[1]) == f.get("axle")) or (
+                    t[0] == "unmodelled_mode" and f.get("axle") == "body"):
                 return t
     return _target(f)
 

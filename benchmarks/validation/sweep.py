@@ -127,10 +127,11 @@ def _axle(t: tuple) -> str | None:
 
 
 def _as_truth(f: dict, systematic: list) -> tuple:
-    """A finding's target, a ``model_form`` finding read as the nonlinear effect on its axle."""
+    """A finding's target, a ``model_form`` finding read as the nonlinear effect on its axle (on the
+    body, a body that is not rigid: as the degree of freedom the model lacks, its frequency unread)."""
     if f["cause"] == "model_form":
         for t in systematic:
-            if t[0] in NONLINEAR and _axle(t) == f.get("axle"):
+            if (t[0] in NONLINEAR and _axle(t) == f.get("axle")) or (t[0] == "unmodelled_mode" and f.get("axle") == "body"):
                 return t
     return target(f)
 

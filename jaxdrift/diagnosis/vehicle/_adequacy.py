@@ -466,3 +466,22 @@ def _could_not_show(prob, st, terms, tests, scales, m) -> tuple[list[str], list[
         out.append("Could not show: " + "; ".join(partly) + ". Smaller ones, still within the sizes engineers "
                    "meet, would not pass the adequacy test in this run (its detection limit).")
     return out, unseen
+
+
+def not_rigid_finding(found: dict) -> dict:
+    """The ``model_form`` finding of a body that does not move as one rigid body (``found``: what
+    ``_mode.find_mode`` put under ``not_rigid``: a resonance whose fitted mass is negative, large
+    against the noise and out of sample). Every cause fitted on the rigid model may stand in for
+    it (``_confirm.confirm_corrections``: none is confirmed)."""
+    c, rms = found["candidate"], found["rms"]
+    ev = (f"Above about {c.freq_hz:.3g} Hz the body acts {-c.mass:.4g} kg heavier than below (a resonance of "
+          f"negative mass in the vertical enforced force and the enforced moment, z = {found['z']:.3g}; fitted on "
+          f"alternate stretches of the record alone it lowers the others' residual, t = {found['halves']['t']:.3g}): "
+          f"no parameter, sensor effect or mass on its own spring makes that. A part of the body that carries an "
+          f"axle's force moves against the part pitch and heave are measured on: a chassis that bends (its first "
+          f"bending mode), or the motion sensors on a part that moves against the rest. The model's rigid body "
+          f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS); the causes fitted on the "
+          f"rigid model may stand in for it, and none is confirmed")
+    return {"cause": "model_form", "channel": "moment", "axle": "body", "state": "frequency (the body bends)",
+            "estimate": rms["moment"], "unit": "N m", "frequency_hz": float(c.freq_hz), "z": float(found["z"]),
+            "confirmed": False, "evidence": ev + "."}

@@ -160,7 +160,8 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
     weakest first, refitting the rest each time), and the parameter errors that may stand in for a
     law the run shows but cannot size (``stand_in``, from :func:`stand_in_targets`: a front bump
     stop read as k3 x 1.50 beside a model-form finding on the front spring's travel is not a
-    stiffer spring). Returns the new selection and the dropped causes with their numbers."""
+    stiffer spring; under ``"body"``, a body that is not rigid: every cause may stand in for it).
+    Returns the new selection and the dropped causes with their numbers."""
     stand_in = stand_in or {}
     fit = sel.fit
     if len(fit.r) <= 2 or not fit.causes:
@@ -172,6 +173,7 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
             imp = improvement(prob, fit, i)
             c = fit.causes[i]
             form = stand_in.get(c.target) if c.kind.name == "parameter_error" else None
+            form = stand_in.get("body", form)  # a body that is not rigid: every cause may stand in
             why = "stand_in" if form is not None else failure(imp, c, float(fit.theta[i]), prob.pipe)
             if why is not None:
                 bad = (i, {**imp, "failed": why, "explained": explained(imp), "share_min": SHARE_MIN,

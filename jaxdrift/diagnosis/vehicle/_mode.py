@@ -509,11 +509,12 @@ def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | No
     rss1 = search.profile(mode.freq_hz, mode.zeta, mode.x)[0]
     out.update(mode=None, candidate=mode, z=z, se_f=se_f, crit=crit, rss=(rss0, rss1))
     why = None
+    explains = math.sqrt(max(rss0 - rss1, 0.0)) >= SHARE_MIN * math.sqrt(max(rss1, 1e-300))
     if not (z > crit):
         why = "z"
     elif not plausible(mode, p, hi):
         why = "implausible"
-    elif math.sqrt(max(rss0 - rss1, 0.0)) < SHARE_MIN * math.sqrt(max(rss1, 1e-300)):
+    elif not explains:
         why = "share"
     else:
         halves = _halves(prob, r, nuisance, p, mode, search)
@@ -531,6 +532,16 @@ def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | No
     out["why"] = why
     if why is None:
         out["mode"] = mode
+    elif why == "z" and z < -crit and -mode.mass >= MASS_MIN * p["m3"] and explains:
+        # a resonance with a negative mass: the body acts heavier above it than below, which no mass
+        # on its own spring does (a part of the body carrying an axle's force moves against the rest)
+        halves = _halves(prob, r, nuisance, p, mode, search)
+        if halves["t"] > 0.0:
+            parts = mode_response(pipe, mode)
+            out["not_rigid"] = {"candidate": mode, "z": z, "halves": halves,
+                                "rms": {nm: float(np.sqrt(np.mean(np.square(parts[nm])))) for nm in MODE_CHANNELS}}
+            if log is not None:
+                log.append(f"the body is not rigid: {mode.mass:.4g} kg at {mode.freq_hz:.4g} Hz, halves t {halves['t']:.3g}")
     return out
 
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, VehicleRun
-from ._adequacy import assess_model_form
+from ._adequacy import assess_model_form, not_rigid_finding
 from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
@@ -113,7 +113,11 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         prob, sel0, form0 = first
     # a parameter error on an axle whose law the adequacy test of sel0's fit finds nonlinear but
     # cannot size stands in for that law: not confirmed (``_confirm.stand_in_targets``)
-    sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log, stand_in_targets(form0))
+    # a body that is not rigid (a resonance of negative mass, ``_mode.find_mode``): a model-form finding
+    # leads, and every cause fitted on the rigid model may stand in for it
+    body = [not_rigid_finding(mode_out["not_rigid"])] if mode is None and mode_out.get("not_rigid") else []
+    sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log,
+                                       {**stand_in_targets(form0), **({"body": body[0]} if body else {})})
     fit = sel.fit
     dynamic = len(fit.r) > 2
 
@@ -133,7 +137,8 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     pipe = prob.pipe
     res1 = pipe.residuals(p_ext, corr_ext)
     form = {**form, "mode": None if mode is None else (mode, mode_finding(prob, mode_out, mode, res1, model)),
-            "notes": form["notes"] + ([] if mode_out["note"] is None else [mode_out["note"]])}
+            "notes": form["notes"] + ([] if mode_out["note"] is None else [mode_out["note"]]),
+            "findings": body + form["findings"]}
     return vehicle_report(run, model, prob, prob_lin, sel, sel0, held_out, resim_out, form, detected,
                           p_ext, corr_ext, res0, res1, dynamic, with_simulation, plots_dir)
 

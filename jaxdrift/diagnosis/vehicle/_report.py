@@ -428,6 +428,10 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
                           f"({OOS_STRETCHES} in all), it does not improve the {imp['channel']} residual on the stretches it was "
                           f"not sized on (their drop is {imp['out_of_sample_t']:.2g} standard errors): it fits "
                           "what the stretches it was sized on hold, not a cause the whole run shows")
+        elif why == "stand_in" and imp["stand_in"]["axle"] == "body":
+            reasons[c] = (f"not confirmed, left out of the extended model: the run shows the body does not move as one "
+                          f"rigid body (z = {imp['stand_in']['z']:.3g}, the model-form finding above), and a cause "
+                          f"fitted on the rigid model may stand in for that")
         elif why == "stand_in":
             s = imp["stand_in"]
             reasons[c] = (f"not confirmed, left out of the extended model: the run shows the {s['axle']} suspension's "
