@@ -47,6 +47,18 @@ def test_extra_confirmed_is_a_systematic_finding_matching_no_hidden_effect():
     assert s["coverage"] == {"force_offset": True, "force_noise/estimate": True}
 
 
+def test_a_body_that_is_not_rigid_names_the_missing_degree_of_freedom_not_its_frequency():
+    """A ``model_form`` finding on the body names a bending chassis (an ``unmodelled_mode`` truth) first;
+    it reads no frequency, so the 10 % measure stays a miss; on an axle it names no mode."""
+    truth = [{"cause": "unmodelled_mode", "value": 26.3}, {"cause": "force_noise", "value": 2.4}]
+    body = {"cause": "model_form", "channel": "moment", "axle": "body", "estimate": 102.0, "confirmed": False}
+    s = sc.score_run("vehicle", {"truth": truth, "findings": [body]})
+    assert s["right"] and not s["extra_confirmed"]
+    assert s["coverage"]["unmodelled_mode/within_10pct"] is False
+    axle = dict(body, axle="front")
+    assert not sc.score_run("vehicle", {"truth": truth, "findings": [axle]})["right"]
+
+
 def test_a_constant_bias_at_the_level_a_walk_held_is_no_extra_claim():
     walk = {"cause": "gyro_bias_drift", "channel": "wx", "value": 6.7e-4, "visibility": 4.0,
             "realised": {"mean": -9.0e-3, "std": 1.0e-3}}
