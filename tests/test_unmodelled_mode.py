@@ -221,8 +221,8 @@ def test_a_chassis_that_bends_is_named_and_confirms_nothing(tmp_path):
     parts on a 26.3 Hz hinge, pitch and heave measured on the rear part, the model the rigid car.
     Before the body finding, the report confirmed I x 0.823 (the moment's RMS 1433 -> 1357 N m, the
     force noise 2.4 N); now a ``model_form`` finding on the body leads (a resonance of negative mass
-    near 30 Hz, z = -481: the body acts heavier above it, which no mass on its own spring does), and
-    nothing fitted on the rigid model is confirmed."""
+    near 30 Hz, z = -481: the body acts heavier above it, which no mass on its own spring does; the
+    enforced moment rings at 25.5 Hz), and nothing fitted on the rigid model is confirmed."""
     from benchmarks.validation import gen_exudyn as ge
 
     paths = ge.make_run(ge.design_bending(30, 20261221)[2], str(tmp_path))
@@ -230,6 +230,7 @@ def test_a_chassis_that_bends_is_named_and_confirms_nothing(tmp_path):
     first = rep["findings"][0]
     assert first["cause"] == "model_form" and first["axle"] == "body", rep["findings"]
     assert first["z"] < -100 and first["confirmed"] is False
+    assert abs(first["frequency_hz"] / 26.31 - 1) < 0.1  # where the moment rings (measured 25.5 Hz)
     assert not [f for f in rep["findings"] if f["cause"] in SYSTEMATIC and f.get("confirmed")], rep["findings"]
     held = [f for f in rep["findings"] if f["cause"] == "parameter_error"]
     assert held and all("does not move as one rigid body" in f["evidence"] for f in held)

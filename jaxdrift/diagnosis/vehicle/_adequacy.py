@@ -480,8 +480,9 @@ def not_rigid_finding(found: dict) -> dict:
           f"no parameter, sensor effect or mass on its own spring makes that. A part of the body that carries an "
           f"axle's force moves against the part pitch and heave are measured on: a chassis that bends (its first "
           f"bending mode), or the motion sensors on a part that moves against the rest. The model's rigid body "
-          f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS); the causes fitted on the "
-          f"rigid model may stand in for it, and none is confirmed")
+          f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS; the enforced moment's power "
+          f"peaks at {found['peak_hz']:.3g} Hz, where such a mode would ring); the causes fitted on the rigid "
+          f"model may stand in for it, and none is confirmed")
     return {"cause": "model_form", "channel": "moment", "axle": "body", "state": "frequency (the body bends)",
-            "estimate": rms["moment"], "unit": "N m", "frequency_hz": float(c.freq_hz), "z": float(found["z"]),
+            "estimate": rms["moment"], "unit": "N m", "frequency_hz": found["peak_hz"], "z": float(found["z"]),
             "confirmed": False, "evidence": ev + "."}
