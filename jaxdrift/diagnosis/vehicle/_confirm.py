@@ -160,8 +160,7 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
     weakest first, refitting the rest each time), and the parameter errors that may stand in for a
     law the run shows but cannot size (``stand_in``, from :func:`stand_in_targets`: a front bump
     stop read as k3 x 1.50 beside a model-form finding on the front spring's travel is not a
-    stiffer spring; under ``"body"``, a body that is not rigid: every cause may stand in for it).
-    Returns the new selection and the dropped causes with their numbers."""
+    stiffer spring). Returns the new selection and the dropped causes with their numbers."""
     stand_in = stand_in or {}
     fit = sel.fit
     if len(fit.r) <= 2 or not fit.causes:
@@ -173,7 +172,6 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
             imp = improvement(prob, fit, i)
             c = fit.causes[i]
             form = stand_in.get(c.target) if c.kind.name == "parameter_error" else None
-            form = stand_in.get("body", form)  # a body that is not rigid: every cause may stand in
             why = "stand_in" if form is not None else failure(imp, c, float(fit.theta[i]), prob.pipe)
             if why is not None:
                 bad = (i, {**imp, "failed": why, "explained": explained(imp), "share_min": SHARE_MIN,
@@ -192,6 +190,18 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
     if not dropped:
         return sel, []
     return _reselected(prob, sel, fit), dropped
+
+
+def held_for_body(prob: _Problem, sel: Selection, body: dict) -> tuple[Selection, list]:
+    """A body that is not rigid (``body``: its ``model_form`` finding): every cause the checks kept
+    may stand in for it, so none is confirmed. Returns the selection without causes and the causes
+    held out as :func:`confirm_corrections` gives them, each sized as the checks left it (``sel``:
+    the causes the checks dropped no longer beside it)."""
+    fit = sel.fit
+    why = {"failed": "stand_in", "stand_in": {k: body[k] for k in ("axle", "state", "z")}}
+    held = [(c, float(c.to_estimate(fit.theta[i])), {**improvement(prob, fit, i), **why})
+            for i, c in enumerate(fit.causes)]
+    return _reselected(prob, sel, _gauss_newton(prob, [], np.zeros(0))), held
 
 
 def _reselected(prob: _Problem, sel: Selection, fit: Fit) -> Selection:

@@ -8,7 +8,7 @@ from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
 from ._mode import carrying, look_for_mode, mode_finding, resize_mode
-from ._confirm import confirm, stand_in_targets
+from ._confirm import confirm, held_for_body, stand_in_targets
 from ._problem import _Problem
 from ._report import vehicle_report
 from ._residuals import ResidualPipeline
@@ -113,11 +113,14 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         prob, sel0, form0 = first
     # a parameter error on an axle whose law the adequacy test of sel0's fit finds nonlinear but
     # cannot size stands in for that law: not confirmed (``_confirm.stand_in_targets``)
+    sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log, stand_in_targets(form0))
     # a body that is not rigid (a resonance of negative mass, ``_mode.find_mode``): a model-form finding
-    # leads, and every cause fitted on the rigid model may stand in for it
+    # leads, and every cause the checks kept may stand in for it (sized as they left it, none confirmed)
     body = [not_rigid_finding(mode_out["not_rigid"])] if mode is None and mode_out.get("not_rigid") else []
-    sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log,
-                                       {**stand_in_targets(form0), **({"body": body[0]} if body else {})})
+    held_body = None
+    if body and sel.fit.causes:
+        kept, held = held_for_body(prob, sel, body[0])
+        held_body, sel = (sel, held), kept
     fit = sel.fit
     dynamic = len(fit.r) > 2
 
@@ -138,7 +141,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     res1 = pipe.residuals(p_ext, corr_ext)
     form = {**form, "mode": None if mode is None else (mode, mode_finding(prob, mode_out, mode, res1, model)),
             "notes": form["notes"] + ([] if mode_out["note"] is None else [mode_out["note"]]),
-            "findings": body + form["findings"]}
+            "findings": body + form["findings"], "held_body": held_body}
     return vehicle_report(run, model, prob, prob_lin, sel, sel0, held_out, resim_out, form, detected,
                           p_ext, corr_ext, res0, res1, dynamic, with_simulation, plots_dir)
 
