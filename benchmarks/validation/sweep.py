@@ -178,7 +178,7 @@ def score(kind: str, effects: list, findings: list) -> dict:
 # ----------------------------------------------------------------------------- one run
 def _trim(f: dict) -> dict:
     keep = ("cause", "channel", "parameter", "sensor", "axle", "state", "estimate", "interval", "z",
-            "evidence", "indistinguishable_from", "confirmed", "estimate_kind")
+            "evidence", "indistinguishable_from", "confirmed", "estimate_kind", "frequency_hz")
     return {k: f[k] for k in keep if k in f}
 
 

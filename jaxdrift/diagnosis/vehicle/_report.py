@@ -499,9 +499,9 @@ def vehicle_report(run, model: dict, prob: "_Problem", prob_lin: "_Problem", sel
     findings = cause_findings(prob, sel, model, res1, sigma, mode=carried)
     for f in findings:
         f["confirmed"] = True
-    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out, carried)
     if form.get("held_body"):  # kept by the checks, sized as they left them, on a body that is not rigid
         findings += unconfirmed_findings(prob, form["held_body"][0], model, sigma, form["held_body"][1], [], carried)
+    findings += unconfirmed_findings(prob, sel0, model, sigma, held_out, resim_out, carried)
     if not dynamic and sigma > 0:
         static, corrections = static_findings(res0, sigma, corrections)
         findings += static
