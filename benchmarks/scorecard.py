@@ -15,7 +15,8 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   freedom draws;
 - ``vehicle-modes/indep``: the same code's cars of ``gen_exudyn.design_modes``: an engine (8-15 Hz),
   a seat or payload (3-6 Hz) on its spring, or the rigid car (the effect-free check), each alone, with
-  a sensor effect or with an error of a chassis spring or damper;
+  a sensor effect or with an error of a chassis spring or damper; ``vehicle-bending/indep``: its
+  chassis in two parts on a hinge (a first bending mode of 15-30 Hz, ``gen_exudyn.design_bending``);
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep``, ``attitude-wide/indep`` and ``attitude-wide2/indep``:

@@ -168,8 +168,8 @@ def split_chassis(p: dict, bending: dict) -> list[dict]:
 
 def bending_modes(p: dict, bending: dict) -> dict:
     """Undamped modes of the bending chassis (linear, about the static pose; our own small model,
-    not Exudyn's): ``free_hz`` the free chassis's bending frequency per unit hinge stiffness's
-    square root (``k = (2 pi f) ** 2 / unit``), and, where ``bending`` has ``k``, ``car_hz``: the
+    not Exudyn's): ``unit`` the free chassis's squared bending frequency [rad^2/s^2] per unit hinge
+    stiffness (``k = (2 pi f) ** 2 / unit``), and, where ``bending`` has ``k``, ``car_hz``: the
     frequency of the whole car's mode with the largest share of its potential energy in the hinge
     (what a resonance in the run shows), and its ``hinge_share``. Coordinates: the hinge's height,
     each part's rotation, the wheels' heights."""

@@ -18,6 +18,10 @@ seat or payload (4-8 % of the body on 3-6 Hz, damping ratio 0.15-0.35, from half
 behind the centre of mass to 0.3 of the front one ahead) or the rigid car, each alone, with a sensor
 effect, or (engine and seat) with an error of a chassis spring or damper (the car simulated with
 the true one, the model given the drawn one).
+
+``design_bending``: the bending-chassis world (scorecard ``vehicle-bending/indep``): the chassis in
+two parts on a hinge (a first bending mode of 15-30 Hz), pitch and heave measured on the part that
+holds the centre of mass, alone, with a sensor effect or with a chassis spring or damper error.
 """
 
 from __future__ import annotations

@@ -472,7 +472,7 @@ def not_rigid_finding(found: dict) -> dict:
     """The ``model_form`` finding of a body that does not move as one rigid body (``found``: what
     ``_mode.find_mode`` put under ``not_rigid``: a resonance whose fitted mass is negative, large
     against the noise and out of sample). Every cause fitted on the rigid model may stand in for
-    it (``_confirm.confirm_corrections``: none is confirmed)."""
+    it (``_confirm.held_for_body``: none is confirmed)."""
     c, rms = found["candidate"], found["rms"]
     ev = (f"Above about {c.freq_hz:.3g} Hz the body acts {-c.mass:.4g} kg heavier than below (a resonance of "
           f"negative mass in the vertical enforced force and the enforced moment, z = {found['z']:.3g}; fitted on "
