@@ -48,14 +48,10 @@ def test_engine_on_stiff_mounts_is_the_rigid_car():
         assert np.max(np.abs(got - ref)) < 1e-4 * np.ptp(ref), name
 
 
-def _bent(car, f_hz, x_hinge, **kw):
-    import math
+def _bent(car, f_hz, x_hinge, zeta=0.0, **kw):
+    from benchmarks.validation.exudyn_halfcar import hinge
 
-    from benchmarks.validation.exudyn_halfcar import bending_modes
-
-    bd = {"share": 0.45, "lam": 0.7, "x_hinge": x_hinge}
-    k = (2 * math.pi * f_hz) ** 2 / bending_modes(car, bd)["unit"]
-    return {**bd, "k": k, "d": 0.0, **kw}
+    return {**hinge(car, {"share": 0.45, "lam": 0.7, "x_hinge": x_hinge}, f_hz, zeta), **kw}
 
 
 class _Flat:
@@ -101,8 +97,7 @@ def test_stiff_bending_chassis_is_the_rigid_car():
     from benchmarks.validation.exudyn_halfcar import simulate_exudyn
 
     car = {**gv.VEHICLES["passenger"], "g": gv.G}
-    bd = _bent(car, 300.0, 0.2)
-    bd["d"] = 2 * 0.05 * bd["k"] / (2 * 3.141592653589793 * 300.0)
+    bd = _bent(car, 300.0, 0.2, zeta=0.05)
     road = gv.FilteredRoad(np.random.default_rng(3), "C", 60.0)
     ex = simulate_exudyn(car, road, 15.0, -1.0, 2.0, 1000.0, 20, bending=bd)
     y = gv.simulate(car, road, 15.0, -1.0, 2.0).sol(ex["t"])

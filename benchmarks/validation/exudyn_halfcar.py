@@ -69,7 +69,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     def on_chassis(x):  # the part the chassis point x ahead of the centre of mass is on, its local position
         q = max((q for q in parts if q["lo"] <= x), key=lambda q: q["lo"])
         return q, [x - q["x"], 0.0, 0.0]
-    n3, body = parts[0]["node"], parts[0]["body"]
+    body = parts[0]["body"]
     if bending is not None:  # the hinge, and its spring preloaded by the front part's static moment about it
         rear, front = parts
         xh = bending["x_hinge"]
@@ -98,9 +98,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     def sensor(node, what):
         return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
                                         outputVariableType=getattr(exu.OutputVariableType, what)))
-    sensors = [sensor(n3, "Coordinates")]
-    if bending is not None:
-        sensors += [sensor(q["node"], "Coordinates") for q in parts]
+    sensors = [sensor(q["node"], "Coordinates") for q in parts]
     if engine is not None:
         sensors.append(sensor(ne, "Coordinates"))
     for i, ((n, _), x) in enumerate(zip(wheels, (b, -a))):  # each wheel under its chassis point
@@ -135,14 +133,14 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     ch = data[0]
     out = {"t": ch[:, 0], "z3": ch[:, 2], "beta": -ch[:, 3]}
     if bending is not None:
-        for q, d in zip(parts, data[1:3]):
+        for q, d in zip(parts, data):
             q["y"], q["phi"] = d[:, 2], d[:, 3]
         home, _ = on_chassis(0.0)
         out.update(z3=home["y"] - home["x"] * np.sin(home["phi"]), beta=-home["phi"])
         for k, x in (("y1", b), ("y2", -a)):
             q, local = on_chassis(x)
             out[k] = q["y"] + local[0] * np.sin(q["phi"])
-        data = [data[0]] + data[3:]
+    data = data[len(parts) - 1:]  # data[0]: the (last) chassis part, then the engine and the wheels
     if engine is not None:
         out["ze"] = data[1][:, 2]
         data = data[1:]
@@ -164,6 +162,14 @@ def split_chassis(p: dict, bending: dict) -> list[dict]:
     own = (1.0 - lam * lam) * I / m3
     return [{"m": mr, "I": own * mr, "x": -lam * r * math.sqrt(mf / mr), "lo": -math.inf},
             {"m": mf, "I": own * mf, "x": lam * r * math.sqrt(mr / mf), "lo": bending["x_hinge"]}]
+
+
+def hinge(p: dict, bending: dict, f_hz: float, zeta: float) -> dict:
+    """``bending`` with the hinge's stiffness ``k`` and damping ``d`` that give the free chassis
+    (``bending_modes``) a first bending mode of ``f_hz`` and damping ratio ``zeta``."""
+    w = 2 * math.pi * f_hz
+    k = w * w / bending_modes(p, bending)["unit"]
+    return {**bending, "k": k, "d": 2 * zeta * k / w}
 
 
 def bending_modes(p: dict, bending: dict) -> dict:

@@ -32,7 +32,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from benchmarks.validation import gen_vehicle as gv
-from benchmarks.validation.exudyn_halfcar import bending_modes, rigid_equivalent, simulate_exudyn
+from benchmarks.validation.exudyn_halfcar import bending_modes, hinge, rigid_equivalent, simulate_exudyn
 
 SUBSTEPS = 10
 
@@ -110,8 +110,7 @@ def _bending(rng, car: dict) -> dict:
     bd = {"share": float(rng.uniform(*B["share"])), "lam": float(rng.uniform(*B["lam"])),
           "x_hinge": float(rng.choice([-1.0, 1.0]) * rng.uniform(*B["hinge"]) * r)}
     f, zeta = float(rng.uniform(*B["freq"])), float(rng.uniform(*B["zeta"]))
-    k = (2 * math.pi * f) ** 2 / bending_modes(car, bd)["unit"]
-    bd.update(k=k, d=2 * zeta * k / (2 * math.pi * f), free_hz=f, damping_ratio=zeta, kind="bending")
+    bd = {**hinge(car, bd, f, zeta), "free_hz": f, "damping_ratio": zeta, "kind": "bending"}
     bd["frequency_hz"] = bending_modes(car, bd)["car_hz"]
     return bd
 

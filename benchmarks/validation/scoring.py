@@ -19,13 +19,20 @@ _AXLE = {"k3": "front", "d3": "front", "f1": "front", "k4": "rear", "d4": "rear"
 _NONLINEAR = nonlinear_cause_names()  # the diagnosis's registry
 
 
+def model_form_names(f: dict, t: tuple) -> bool:
+    """Whether the ``model_form`` finding ``f`` names the hidden effect ``t`` (cause, channel or
+    parameter): the nonlinear effect on its axle (what the linear model cannot explain there without
+    forcing it into a candidate), or, on the body (a body that is not rigid), the degree of freedom
+    the model lacks."""
+    return ((t[0] in _NONLINEAR and _AXLE.get(t[1]) == f.get("axle"))
+            or (t[0] == "unmodelled_mode" and f.get("axle") == "body"))
+
+
 def _as_truth(f: dict, truth: set) -> tuple:
-    """A ``model_form`` finding counts as the nonlinear effect on its axle (it names what the linear
-    model cannot explain there without forcing it into a candidate)."""
+    """A finding's target; a ``model_form`` finding's the hidden effect it names (``model_form_names``)."""
     if f["cause"] == "model_form":
         for t in truth:
-            if (t[0] in _NONLINEAR and _AXLE.get(t[1]) == f.get("axle")) or (
-                    t[0] == "unmodelled_mode" and f.get("axle") == "body"):
+            if model_form_names(f, t):
                 return t
     return _target(f)
 

@@ -55,6 +55,8 @@ sys.path.insert(0, str(HERE.parents[1]))  # run as a script: the repository root
 #: (both from the diagnosis's registries)
 from jaxdrift.diagnosis.vehicle import VEHICLE_CAUSES, nonlinear_cause_names  # noqa: E402
 
+from benchmarks.validation.scoring import model_form_names  # noqa: E402
+
 NONLINEAR = nonlinear_cause_names()
 FORM = ("model_form",) + NONLINEAR
 SYSTEMATIC = {"vehicle": tuple(k.name for k in VEHICLE_CAUSES) + FORM + ("unmodelled_mode",),
@@ -127,11 +129,11 @@ def _axle(t: tuple) -> str | None:
 
 
 def _as_truth(f: dict, systematic: list) -> tuple:
-    """A finding's target, a ``model_form`` finding read as the nonlinear effect on its axle (on the
-    body, a body that is not rigid: as the degree of freedom the model lacks, its frequency unread)."""
+    """A finding's target; a ``model_form`` finding's the hidden effect it names
+    (``scoring.model_form_names``)."""
     if f["cause"] == "model_form":
         for t in systematic:
-            if (t[0] in NONLINEAR and _axle(t) == f.get("axle")) or (t[0] == "unmodelled_mode" and f.get("axle") == "body"):
+            if model_form_names(f, t):
                 return t
     return target(f)
 
