@@ -27,7 +27,7 @@ from ._problem import Fit, _gauss_newton, _Problem
 from ._residuals import kept as _kept
 from ._residuals import rms as _rms
 from ._residuals import telling_channel as _telling_channel
-from ._select import Selection, _covariance
+from ._select import Selection, _covariance, _select
 
 
 #: a half fails when its drop of the squared residual is below zero by more than this many standard
@@ -192,16 +192,65 @@ def confirm_corrections(prob: _Problem, sel: Selection, log=None, stand_in: dict
     return _reselected(prob, sel, fit), dropped
 
 
-def held_for_body(prob: _Problem, sel: Selection, body: dict) -> tuple[Selection, list]:
+def held_for_body(prob: _Problem, sel: Selection, body: dict, keep=()) -> tuple[Selection, list]:
     """A body that is not rigid (``body``: its ``model_form`` finding): every cause the checks kept
-    may stand in for it, so none is confirmed. Returns the selection without causes and the causes
-    held out as :func:`confirm_corrections` gives them, each sized as the checks left it (``sel``:
-    the causes the checks dropped no longer beside it)."""
+    but ``keep`` may stand in for it, so it is not confirmed. Returns the selection refit with the
+    causes of ``keep`` alone and the causes held out as :func:`confirm_corrections` gives them, each
+    sized as the checks left it (``sel``: the causes the checks dropped no longer beside it)."""
     fit = sel.fit
     why = {"failed": "stand_in", "stand_in": {k: body[k] for k in ("axle", "state", "z")}}
     held = [(c, float(c.to_estimate(fit.theta[i])), {**improvement(prob, fit, i), **why})
-            for i, c in enumerate(fit.causes)]
-    return _reselected(prob, sel, _gauss_newton(prob, [], np.zeros(0))), held
+            for i, c in enumerate(fit.causes) if c not in keep]
+    idx = [i for i, c in enumerate(fit.causes) if c in keep]
+    return _reselected(prob, sel, _gauss_newton(prob, [fit.causes[i] for i in idx], fit.theta[idx])), held
+
+
+#: the bands a body that is not rigid is compared in, as shares of the frequency its enforced
+#: moment peaks at (``_mode``'s ``peak_hz``): well below its resonance the body moves nearly as
+#: one, and what the rigid model lacks there grows with frequency (as (f / f_mode)^2), so a cause
+#: that stands in for it is sized differently in the two bands, while an error of the sensors or
+#: of the model's parameters is sized alike. The lower band holds the body modes and the
+#: suspension's resonances of a car (1-8 Hz for a resonance at 15-30 Hz)
+BODY_BANDS = (0.5, 0.3)
+
+
+def sized_alike(a: Selection, b: Selection) -> list:
+    """The causes both selections kept whose 95 % intervals (statistical and method part) overlap."""
+    from ._causes import method_half
+
+    out = []
+    for i, c in enumerate(a.fit.causes):
+        if c not in b.fit.causes:
+            continue
+        j = b.fit.causes.index(c)
+        ta, tb = a.fit.theta[i], b.fit.theta[j]
+        half = (math.hypot(1.96 * math.sqrt(max(a.cov[i, i], 0.0)), method_half(c.kind, ta))
+                + math.hypot(1.96 * math.sqrt(max(b.cov[j, j], 0.0)), method_half(c.kind, tb)))
+        if abs(ta - tb) <= half:
+            out.append(c)
+    return out
+
+
+def confirm_below_body(rigid: _Problem, peak_hz: float, with_simulation: bool, log=None) -> dict:
+    """The causes of a run whose body is not rigid, chosen and checked (:func:`confirm`) on the
+    rigid model compared below ``BODY_BANDS`` x ``peak_hz`` (``_Problem.below``), in each band.
+    Returns, for the lowest band: its problem ``prob``, the selection before the checks ``sel0``
+    and after them ``sel``, the causes the checks dropped (``held_out``, ``resim_out``), and
+    ``alike``: the causes the checks kept in every band, sized alike in each (:func:`sized_alike`), and
+    ``bands_hz``, the bands' upper edges."""
+    out = None
+    for share in BODY_BANDS:
+        prob = rigid.below(share * peak_hz)
+        sel0 = _select(prob, log=log)
+        sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log)
+        alike = list(sel.fit.causes) if out is None else sized_alike(sel, out["sel"])
+        alike = [c for c in alike if out is None or c in out["alike"]]
+        if log is not None:
+            log.append(f"below {share * peak_hz:.3g} Hz (the body not rigid): kept {[c.label for c in sel.fit.causes]}"
+                       + ("" if out is None else f", sized alike above: {[c.label for c in alike]}"))
+        out = {"prob": prob, "sel0": sel0, "sel": sel, "held_out": held_out, "resim_out": resim_out,
+               "alike": alike, "bands_hz": tuple(f * peak_hz for f in BODY_BANDS)}
+    return out
 
 
 def _reselected(prob: _Problem, sel: Selection, fit: Fit) -> Selection:

@@ -8,7 +8,7 @@ from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
 from ._mode import carrying, look_for_mode, mode_finding, resize_mode
-from ._confirm import confirm, held_for_body, stand_in_targets
+from ._confirm import confirm, confirm_below_body, held_for_body, stand_in_targets
 from ._problem import _Problem
 from ._report import vehicle_report
 from ._residuals import ResidualPipeline
@@ -115,12 +115,16 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
     # cannot size stands in for that law: not confirmed (``_confirm.stand_in_targets``)
     sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log, stand_in_targets(form0))
     # a body that is not rigid (a resonance of negative mass, ``_mode.find_mode``): a model-form finding
-    # leads, and every cause the checks kept may stand in for it (sized as they left it, none confirmed)
+    # leads, the causes are chosen on the rigid model compared below the resonance, and those the
+    # checks keep that two bands do not size alike may stand in for it (held out, sized as the checks left them)
     body = [not_rigid_finding(mode_out["not_rigid"])] if mode is None and mode_out.get("not_rigid") else []
     held_body = None
-    if body and sel.fit.causes:
-        kept, held = held_for_body(prob, sel, body[0])
-        held_body, sel = (sel, held), kept
+    if body:
+        below = confirm_below_body(rigid, body[0]["frequency_hz"], with_simulation, log)
+        prob, sel0, held_out, resim_out = below["prob"], below["sel0"], below["held_out"], below["resim_out"]
+        kept, held = held_for_body(prob, below["sel"], body[0], keep=below["alike"])
+        held_body, sel = ((below["sel"], held) if held else None), kept
+        body[0] = not_rigid_finding(mode_out["not_rigid"], below["bands_hz"])
     fit = sel.fit
     dynamic = len(fit.r) > 2
 

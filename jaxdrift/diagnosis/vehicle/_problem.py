@@ -47,18 +47,39 @@ class _Problem:
         band = choose_bands(pipe, model, self.names, self.ir, self.motion_noise, shapes,
                             self.MOTION_NOISE_SHARE)
         if band:
-            # the comparison from here on: the same pipeline with these channels low-passed
-            self.pipe = pipe.with_band(band)
-            # The start of a low-passed channel carries the filter's start-up and the end effects
-            # of the motion's derivatives, spread over about 1/fc: measured (pitch, heave and
-            # spring travel with 3e-5 of white noise, 500 Hz) up to 10x the residual's rms over
-            # the first 0.4 s, enough to fit spurious causes. Those rows are left out.
-            for nm, (fc, _) in band.items():
-                s = min(int(math.ceil(1.5 / (fc * pipe.h))), self.rows[nm] // 4)
-                self.skip[nm] = s
-                self.rows[nm] -= s
-            self._ir_cache.clear()
-            self.ir, self.noise_std = self.impulse_responses(self.model)
+            self._compare_in(band)
+
+    def _compare_in(self, band: dict) -> None:
+        """Compare from here on through the same pipeline with the channels of ``band`` low-passed
+        (``{channel: (cutoff Hz, sos)}``, every band the comparison is to have).
+
+        The start of a low-passed channel carries the filter's start-up and the end effects of the
+        motion's derivatives, spread over about 1/fc: measured (pitch, heave and spring travel with
+        3e-5 of white noise, 500 Hz) up to 10x the residual's rms over the first 0.4 s, enough to
+        fit spurious causes. Those rows are left out."""
+        self.pipe = self.pipe.with_band(band)
+        for nm, (fc, _) in band.items():
+            s = min(int(math.ceil(1.5 / (fc * self.pipe.h))), (self.rows[nm] + self.skip[nm]) // 4)
+            self.rows[nm] += self.skip[nm] - s
+            self.skip[nm] = s
+        self._ir_cache = {}
+        self.ir, self.noise_std = self.impulse_responses(self.model)
+
+    #: the residual channels the body's motion enters (those :meth:`below` low-passes)
+    BODY_CHANNELS = ("moment", "heave", "spring1", "spring2")
+
+    def below(self, fc: float) -> "_Problem":
+        """The same problem compared only below ``fc`` [Hz] on the channels the body's motion
+        enters (each keeps a lower band it already has): where a body that is not rigid still
+        moves as one."""
+        band = dict(self.pipe.band)
+        for nm in self.names:
+            if nm in self.BODY_CHANNELS and band.get(nm, (math.inf,))[0] > fc:
+                band[nm] = (fc, scipy.signal.butter(8, fc, fs=1.0 / self.pipe.h, output="sos"))
+        new = copy.copy(self)
+        new.rows, new.skip = dict(self.rows), dict(self.skip)
+        new._compare_in(band)
+        return new
 
     def with_pipe(self, pipe: ResidualPipeline) -> "_Problem":
         """The same problem (rows, bands, noise responses) compared through ``pipe``: the same

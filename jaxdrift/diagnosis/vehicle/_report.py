@@ -430,8 +430,9 @@ def unconfirmed_findings(prob: "_Problem", sel0, model: dict, sigma: float,
                           "what the stretches it was sized on hold, not a cause the whole run shows")
         elif why == "stand_in" and imp["stand_in"]["axle"] == "body":
             reasons[c] = (f"not confirmed, left out of the extended model: the run shows the body does not move as one "
-                          f"rigid body (z = {imp['stand_in']['z']:.3g}, the model-form finding above), and a cause "
-                          f"fitted on the rigid model may stand in for that")
+                          f"rigid body (z = {imp['stand_in']['z']:.3g}, the model-form finding above), and compared below "
+                          f"its resonance in two bands, the rigid model's fit does not size this cause alike in "
+                          f"both, as a cause standing in for what the rigid body lacks would not")
         elif why == "stand_in":
             s = imp["stand_in"]
             reasons[c] = (f"not confirmed, left out of the extended model: the run shows the {s['axle']} suspension's "
