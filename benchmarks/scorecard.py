@@ -488,6 +488,9 @@ def score_run(kind: str, rec: dict) -> dict:
             est = next((f.get("estimate") if f["cause"] == "unmodelled_mode" else f.get("frequency_hz")
                         for f in findings if f["cause"] == "unmodelled_mode" or f.get("axle") == "body"), None)
             cov["unmodelled_mode/within_10pct"] = est is not None and abs(est - e["value"]) <= 0.1 * e["value"]
+            # the other measure: the model-form error named first, whatever else is hidden
+            cov["unmodelled_mode/named_first"] = bool(findings) and (
+                findings[0]["cause"] == "unmodelled_mode" or findings[0].get("axle") == "body")
     out["coverage"] = cov
     out["reference_flags"] = sum(f["cause"] == "reference_inconsistent" for f in findings)
     return out
