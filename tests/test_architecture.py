@@ -320,6 +320,7 @@ ITEM_MUTATION_ALLOWED = {
     "diagnosis.vehicle._select:_screen": "the candidates' signature columns, cached across the forward steps",
     "diagnosis.vehicle._confirm:confirm_corrections": "the selection log",
     "diagnosis.vehicle._confirm:confirm_by_resimulation": "the selection log",
+    "diagnosis.vehicle._confirm:confirm_below_body": "the selection log",
     "diagnosis.vehicle._pipeline:select_with_form": "the selection log",
     "diagnosis.vehicle._mode:find_mode": "the selection log",
     "diagnosis.vehicle._mode:resize_mode": "the selection log",
