@@ -468,11 +468,11 @@ def _could_not_show(prob, st, terms, tests, scales, m) -> tuple[list[str], list[
     return out, unseen
 
 
-def not_rigid_finding(found: dict, bands_hz: tuple | None = None) -> dict:
+def not_rigid_finding(found: dict, bands_hz: tuple) -> dict:
     """The ``model_form`` finding of a body that does not move as one rigid body (``found``: what
     ``_mode.find_mode`` put under ``not_rigid``: a resonance whose fitted mass is negative, large
-    against the noise and out of sample). With ``bands_hz`` (``_confirm.confirm_below_body``'s, highest
-    first), the causes were compared below the lowest, and only those every band sizes alike are confirmed."""
+    against the noise and out of sample). The other causes are compared below the lowest of ``bands_hz``
+    (``_confirm.confirm_below_body``'s, highest first), and only those every band sizes alike are confirmed."""
     c, rms = found["candidate"], found["rms"]
     ev = (f"Above about {c.freq_hz:.3g} Hz the body acts {-c.mass:.4g} kg heavier than below (a resonance of "
           f"negative mass in the vertical enforced force and the enforced moment, z = {found['z']:.3g}; fitted on "
@@ -482,13 +482,10 @@ def not_rigid_finding(found: dict, bands_hz: tuple | None = None) -> dict:
           f"bending mode), or the motion sensors on a part that moves against the rest. The model's rigid body "
           f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS; the enforced moment's power "
           f"peaks at {found['peak_hz']:.3g} Hz, where such a mode would ring)")
-    if bands_hz:
-        ev += (f"; the other findings are compared below {bands_hz[-1]:.3g} Hz, where the body moves nearly as one, and "
-               f"a cause is confirmed only where that band and the band below {bands_hz[0]:.3g} Hz size it alike "
-               f"(what the rigid body lacks grows with frequency there, and a cause standing in for it does not "
-               f"keep its size)")
-    else:
-        ev += "; the causes fitted on the rigid model may stand in for it, and none is confirmed"
+    ev += (f"; the other findings are compared below {bands_hz[-1]:.3g} Hz, where the body moves nearly as one, and "
+           f"a cause is confirmed only where that band and the band below {bands_hz[0]:.3g} Hz size it alike "
+           f"(what the rigid body lacks grows with frequency there, and a cause standing in for it does not "
+           f"keep its size)")
     return {"cause": "model_form", "channel": "moment", "axle": "body", "state": "frequency (the body bends)",
             "estimate": rms["moment"], "unit": "N m", "frequency_hz": found["peak_hz"], "z": float(found["z"]),
             "confirmed": False, "evidence": ev + "."}

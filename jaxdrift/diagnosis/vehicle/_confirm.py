@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ._causes import _apply
+from ._causes import _apply, method_half
 from ._problem import Fit, _gauss_newton, _Problem
 from ._residuals import kept as _kept
 from ._residuals import rms as _rms
@@ -216,8 +216,6 @@ BODY_BANDS = (0.5, 0.3)
 
 def sized_alike(a: Selection, b: Selection) -> list:
     """The causes both selections kept whose 95 % intervals (statistical and method part) overlap."""
-    from ._causes import method_half
-
     out = []
     for i, c in enumerate(a.fit.causes):
         if c not in b.fit.causes:

@@ -111,20 +111,22 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
             f"the causes chosen it moves or stops being a mass on a spring (unmodelled_mode not named); the "
             f"model may lack something else.")}
         prob, sel0, form0 = first
-    # a parameter error on an axle whose law the adequacy test of sel0's fit finds nonlinear but
-    # cannot size stands in for that law: not confirmed (``_confirm.stand_in_targets``)
-    sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log, stand_in_targets(form0))
     # a body that is not rigid (a resonance of negative mass, ``_mode.find_mode``): a model-form finding
-    # leads, the causes are chosen on the rigid model compared below the resonance, and those the
-    # checks keep that two bands do not size alike may stand in for it (held out, sized as the checks left them)
-    body = [not_rigid_finding(mode_out["not_rigid"])] if mode is None and mode_out.get("not_rigid") else []
-    held_body = None
-    if body:
-        below = confirm_below_body(rigid, body[0]["frequency_hz"], with_simulation, log)
+    # leads, the causes are chosen and checked on the rigid model compared below the resonance, and
+    # those the checks keep that two bands do not size alike may stand in for it (held out, sized as
+    # the checks left them)
+    not_rigid = mode_out.get("not_rigid") if mode is None else None
+    body, held_body = [], None
+    if not_rigid:
+        below = confirm_below_body(rigid, not_rigid["peak_hz"], with_simulation, log)
         prob, sel0, held_out, resim_out = below["prob"], below["sel0"], below["held_out"], below["resim_out"]
-        kept, held = held_for_body(prob, below["sel"], body[0], keep=below["alike"])
-        held_body, sel = ((below["sel"], held) if held else None), kept
-        body[0] = not_rigid_finding(mode_out["not_rigid"], below["bands_hz"])
+        body = [not_rigid_finding(not_rigid, below["bands_hz"])]
+        sel, held = held_for_body(prob, below["sel"], body[0], keep=below["alike"])
+        held_body = (below["sel"], held) if held else None
+    else:
+        # a parameter error on an axle whose law the adequacy test of sel0's fit finds nonlinear but
+        # cannot size stands in for that law: not confirmed (``_confirm.stand_in_targets``)
+        sel, held_out, resim_out = confirm(prob, sel0, with_simulation, log, stand_in_targets(form0))
     fit = sel.fit
     dynamic = len(fit.r) > 2
 
