@@ -471,17 +471,23 @@ def _could_not_show(prob, st, terms, tests, scales, m) -> tuple[list[str], list[
 def not_rigid_finding(found: dict, bands_hz: tuple) -> dict:
     """The ``model_form`` finding of a body that does not move as one rigid body (``found``: what
     ``_mode.find_mode`` put under ``not_rigid``: a resonance whose fitted mass is negative, large
-    against the noise and out of sample). The other causes are compared below the lowest of ``bands_hz``
+    against the noise and out of sample; or, ``withdrawn``, a mass on its own spring that stopped being
+    one beside the causes chosen). The other causes are compared below the lowest of ``bands_hz``
     (``_confirm.confirm_below_body``'s, highest first), and only those every band sizes alike are confirmed."""
     c, rms = found["candidate"], found["rms"]
-    ev = (f"Above about {c.freq_hz:.3g} Hz the body acts {-c.mass:.4g} kg heavier than below (a resonance of "
-          f"negative mass in the vertical enforced force and the enforced moment, z = {found['z']:.3g}; fitted on "
-          f"alternate stretches of the record alone it lowers the others' residual, t = {found['halves']['t']:.3g}): "
-          f"no parameter, sensor effect or mass on its own spring makes that. A part of the body that carries an "
-          f"axle's force moves against the part pitch and heave are measured on: a chassis that bends (its first "
-          f"bending mode), or the motion sensors on a part that moves against the rest. The model's rigid body "
-          f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS; the enforced moment's power "
-          f"peaks at {found['peak_hz']:.3g} Hz, where such a mode would ring)")
+    oos = f"fitted on alternate stretches of the record alone it lowers the others' residual, t = {found['halves']['t']:.3g}"
+    if found.get("withdrawn"):  # a positive mass that does not hold beside the causes chosen
+        ev = (f"A resonance near {c.freq_hz:.3g} Hz fits what no parameter or sensor effect makes (z = {found['z']:.3g}; "
+              f"{oos}), but beside the causes chosen it moves or stops being a mass on its own spring: no "
+              f"unmodelled_mode holds it. A part of the body that carries an ")
+    else:
+        ev = (f"Above about {c.freq_hz:.3g} Hz the body acts {-c.mass:.4g} kg heavier than below (a resonance of "
+              f"negative mass in the vertical enforced force and the enforced moment, z = {found['z']:.3g}; {oos}): "
+              f"no parameter, sensor effect or mass on its own spring makes that. A part of the body that carries an ")
+    ev += (f"axle's force moves against the part pitch and heave are measured on: a chassis that bends (its first "
+           f"bending mode), or the motion sensors on a part that moves against the rest. The model's rigid body "
+           f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS; the enforced moment's power "
+           f"peaks at {found['peak_hz']:.3g} Hz, where such a mode would ring)")
     ev += (f"; the other findings are compared below {bands_hz[-1]:.3g} Hz, where the body moves nearly as one, and "
            f"a cause is confirmed only where that band and the band below {bands_hz[0]:.3g} Hz size it alike "
            f"(what the rigid body lacks grows with frequency there, and a cause standing in for it does not "

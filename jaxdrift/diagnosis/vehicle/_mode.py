@@ -549,12 +549,19 @@ def find_mode(prob, p: dict, r: np.ndarray, nuisance: np.ndarray, log: list | No
         # on its own spring does (a part of the body carrying an axle's force moves against the rest)
         halves = _halves(prob, r, nuisance, p, mode, search)
         if halves["t"] > 0.0:
-            parts = mode_response(pipe, mode)
-            out["not_rigid"] = {"candidate": mode, "z": z, "halves": halves, "peak_hz": _moment_peak(pipe, p, hi),
-                                "rms": {nm: float(np.sqrt(np.mean(np.square(parts[nm])))) for nm in MODE_CHANNELS}}
+            out["not_rigid"] = not_rigid(pipe, p, mode, z, halves)
             if log is not None:
                 log.append(f"the body is not rigid: {mode.mass:.4g} kg at {mode.freq_hz:.4g} Hz, halves t {halves['t']:.3g}")
     return out
+
+
+def not_rigid(pipe, p: dict, mode: Mode, z: float, halves: dict) -> dict:
+    """What a body that is not rigid is reported from (``_adequacy.not_rigid_finding``): the
+    resonance fitted (``mode``, its ``z`` and out-of-sample ``halves``), the frequency the rigid
+    model's enforced moment peaks at and the resonance's RMS part of each channel it shows in."""
+    parts = mode_response(pipe, mode)
+    return {"candidate": mode, "z": z, "halves": halves, "peak_hz": _moment_peak(pipe, p, _band_hi(pipe)),
+            "rms": {nm: float(np.sqrt(np.mean(np.square(parts[nm])))) for nm in MODE_CHANNELS}}
 
 
 def look_for_mode(prob, model: dict, fit, log: list | None = None) -> dict:

@@ -7,7 +7,7 @@ from ._adequacy import assess_model_form, not_rigid_finding
 from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
-from ._mode import carrying, look_for_mode, mode_finding, resize_mode
+from ._mode import carrying, look_for_mode, mode_finding, not_rigid, resize_mode
 from ._confirm import confirm, confirm_below_body, held_for_body, stand_in_targets
 from ._problem import _Problem
 from ._report import vehicle_report
@@ -104,23 +104,23 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         # and with the mode moved their residual was 5.9 N where the same causes refitted leave
         # 0.28 N; a damper and a delay stood in for the difference (vehicle-modes/indep run 8)
         prob, sel0, form0 = select_with_form(rigid.with_pipe(carrying(pipe, mode)), log)
-    if mode_out["mode"] is not None and mode is None:  # withdrawn: the first choice stands
+    if mode_out["mode"] is not None and mode is None:
+        # withdrawn: a resonance no linear cause makes that is no mass on its own spring either (a
+        # chassis that bends reads as one, then moves beside the causes chosen): the body is not rigid
         c = mode_out["mode"]
-        mode_out = {**mode_out, "mode": None, "note": (
-            f"Could not show: a resonance near {c.freq_hz:.3g} Hz fits what no linear cause makes, but beside "
-            f"the causes chosen it moves or stops being a mass on a spring (unmodelled_mode not named); the "
-            f"model may lack something else.")}
+        mode_out = {**mode_out, "mode": None, "not_rigid": {
+            **not_rigid(pipe, model, c, mode_out["z"], mode_out["halves"]), "withdrawn": True}}
         prob, sel0, form0 = first
     # a body that is not rigid (a resonance of negative mass, ``_mode.find_mode``): a model-form finding
     # leads, the causes are chosen and checked on the rigid model compared below the resonance, and
     # those the checks keep that two bands do not size alike may stand in for it (held out, sized as
     # the checks left them)
-    not_rigid = mode_out.get("not_rigid") if mode is None else None
+    loose = mode_out.get("not_rigid") if mode is None else None
     body, held_body = [], None
-    if not_rigid:
-        below = confirm_below_body(rigid, not_rigid["peak_hz"], with_simulation, log)
+    if loose:
+        below = confirm_below_body(rigid, loose["peak_hz"], with_simulation, log)
         prob, sel0, held_out, resim_out = below["prob"], below["sel0"], below["held_out"], below["resim_out"]
-        body = [not_rigid_finding(not_rigid, below["bands_hz"])]
+        body = [not_rigid_finding(loose, below["bands_hz"])]
         sel, held = held_for_body(prob, below["sel"], body[0], keep=below["alike"])
         held_body = (below["sel"], held) if held else None
     else:
