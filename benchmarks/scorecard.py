@@ -485,12 +485,12 @@ def score_run(kind: str, rec: dict) -> dict:
     for e in rec["truth"]:
         if e["cause"] == "unmodelled_mode":  # the measure: the mode's frequency within 10 %
             # (a body that is not rigid: the frequency where its finding says the mode rings)
-            est = next((f.get("estimate") if f["cause"] == "unmodelled_mode" else f.get("frequency_hz")
-                        for f in findings if f["cause"] == "unmodelled_mode" or f.get("axle") == "body"), None)
+            named = [f for f in findings if f["cause"] == "unmodelled_mode" or f.get("axle") == "body"]
+            est = (named[0].get("estimate") if named[0]["cause"] == "unmodelled_mode"
+                   else named[0].get("frequency_hz")) if named else None
             cov["unmodelled_mode/within_10pct"] = est is not None and abs(est - e["value"]) <= 0.1 * e["value"]
             # the other measure: the model-form error named first, whatever else is hidden
-            cov["unmodelled_mode/named_first"] = bool(findings) and (
-                findings[0]["cause"] == "unmodelled_mode" or findings[0].get("axle") == "body")
+            cov["unmodelled_mode/named_first"] = bool(named) and named[0] is findings[0]
     out["coverage"] = cov
     out["reference_flags"] = sum(f["cause"] == "reference_inconsistent" for f in findings)
     return out
