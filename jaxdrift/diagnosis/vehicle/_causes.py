@@ -511,14 +511,19 @@ def method_half(kind, theta: float) -> float:
     return 1.96 * k.method_rel * abs(theta)
 
 
+def half_width(c: Cause, theta: float, se: float, floor: float = 0.0) -> float:
+    """The 95 % half-width in theta units: the statistical 1.96 se, the comparison's numerical
+    resolution ``floor`` and the method component (``method_rel``), in quadrature."""
+    return math.hypot(1.96 * se, floor, method_half(c.kind, theta))
+
+
 def _finding_for(c: Cause, theta: float, se: float, floor: float = 0.0) -> dict:
     """The finding with its 95 % interval: the statistical half-width 1.96 se combined with the
     comparison's numerical resolution ``floor`` (in theta units; without noise se is only the
     discretisation floor of the residual, which says nothing about the estimate's own error)
     and the method component (``method_rel``), in quadrature."""
     est = c.to_estimate(theta)
-    half = math.hypot(1.96 * se, floor, method_half(c.kind, theta))
-    lo, hi = c.kind.interval(theta, half)
+    lo, hi = c.kind.interval(theta, half_width(c, theta, se, floor))
     out = {"cause": c.kind.name}
     out.update(c.target_json())
     out.update({"estimate": float(est), "unit": c.unit(), "interval": [float(lo), float(hi)]})

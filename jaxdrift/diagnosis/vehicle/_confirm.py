@@ -22,7 +22,7 @@ import math
 
 import numpy as np
 
-from ._causes import _apply, method_half
+from ._causes import _apply, half_width
 from ._problem import Fit, _gauss_newton, _Problem
 from ._residuals import kept as _kept
 from ._residuals import rms as _rms
@@ -222,8 +222,8 @@ def sized_alike(a: Selection, b: Selection) -> list:
             continue
         j = b.fit.causes.index(c)
         ta, tb = a.fit.theta[i], b.fit.theta[j]
-        half = (math.hypot(1.96 * math.sqrt(max(a.cov[i, i], 0.0)), method_half(c.kind, ta))
-                + math.hypot(1.96 * math.sqrt(max(b.cov[j, j], 0.0)), method_half(c.kind, tb)))
+        half = (half_width(c, ta, math.sqrt(max(a.cov[i, i], 0.0)))
+                + half_width(c, tb, math.sqrt(max(b.cov[j, j], 0.0))))
         if abs(ta - tb) <= half:
             out.append(c)
     return out
