@@ -38,6 +38,7 @@ import scipy.linalg
 import scipy.signal
 import scipy.stats
 
+from ._mode import MODE, MODE_CHANNELS, Mode
 from ._residuals import rms as _rms
 from ._nonlinear import AXLES, BumpStop, States, catalogue, model_states, signatures, travel_response
 
@@ -495,3 +496,47 @@ def not_rigid_finding(found: dict, bands_hz: tuple) -> dict:
     return {"cause": "model_form", "channel": "moment", "axle": "body", "state": "frequency (the body bends)",
             "estimate": rms["moment"], "unit": "N m", "frequency_hz": found["peak_hz"], "z": float(found["z"]),
             "confirmed": False, "evidence": ev + "."}
+
+
+#: a channel the mode "shows in": its part there is at least this share of the channel's residual
+SHOWS_SHARE = 0.1
+
+
+def mode_finding(prob, out: dict, mode: Mode, res1, model: dict) -> dict:
+    """The report's ``unmodelled_mode`` finding (confirmed: every test of ``_mode.find_mode`` passed):
+    the frequency with its interval (the widest of 1.96 standard errors, the two halves'
+    disagreement and the move from the search to the final size), damping ratio, the channels it
+    shows in, the placement and the evidence. ``res1``: the extended model's residuals (``prob``'s
+    pipeline carries ``mode``); without the mode they are ``res1`` plus its part, so the drop the
+    evidence states is the mode's own."""
+    parts = prob.pipe._mode_parts
+    shows, drop = [], {}
+    for nm in MODE_CHANNELS:
+        rows = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
+        part = np.asarray(parts[nm])[rows]
+        after = np.asarray(res1.channels[nm])[rows]
+        before = after + part
+        drop[nm] = (_rms(before), _rms(after))
+        if _rms(part) >= SHOWS_SHARE * _rms(before):
+            shows.append(nm)
+    f0, f1 = out["halves"]["freqs"]
+    half = max(1.96 * out["se_f"], abs(f0 - f1), abs(mode.freq_hz - out["candidate"].freq_hz))
+    share = mode.mass / model["m3"]
+    where = ("at the centre of mass" if abs(mode.x) < 0.05 * (model["a"] + model["b"]) else
+             f"{abs(mode.x):.3g} m {'ahead of' if mode.x > 0 else 'behind'} the centre of mass")
+    h0, h1 = drop["heave"]
+    ev = (f"A resonance at {mode.freq_hz:.4g} Hz (damping ratio {mode.zeta:.2g}) in the "
+          + " and the ".join({"heave": "vertical enforced force", "moment": "enforced moment"}[nm] for nm in shows)
+          + f" that no parameter or sensor effect of the model makes: a mass of {mode.mass:.4g} kg "
+          f"({100 * share:.3g} % of the body) on a spring-damper {where} explains it, the vertical enforced "
+          f"force's residual falls from {h0:.4g} to {h1:.4g} N RMS (z = {out['z']:.3g}); fitted on alternate "
+          f"stretches of the record alone it lowers the others' residual (t = {out['halves']['t']:.3g}), at "
+          f"{f0:.4g} and {f1:.4g} Hz.")
+    return {"cause": MODE.name, "estimate": float(mode.freq_hz), "unit": MODE.unit,
+            "interval": [float(mode.freq_hz - half), float(mode.freq_hz + half)], "damping": float(mode.zeta),
+            "channels": shows, "placement": {"x_m": float(mode.x), "mass_kg": float(mode.mass),
+                                             "share_of_body": float(share),
+                                             "stiffness_n_per_m": float(mode.stiffness),
+                                             "damping_n_s_per_m": float(mode.damping)},
+            "z": float(out["z"]), "residual": {"channel": "heave", "before": float(h0), "after": float(h1)},
+            "confirmed": True, "evidence": ev}

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from ...io._csvio import DEFAULT_MODEL, VehicleRun
-from ._adequacy import assess_model_form, not_rigid_finding
+from ._adequacy import assess_model_form, mode_finding, not_rigid_finding
 from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
-from ._mode import carrying, look_for_mode, mode_finding, not_rigid, resize_mode
+from ._mode import carrying, look_for_mode, not_rigid, resize_mode
 from ._confirm import confirm, confirm_below_body, confirm_corrections, held_for_body, stand_in_targets
 from ._problem import _Problem
 from ._report import vehicle_report
@@ -125,7 +125,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         held_body = (below["sel"], held) if held else None
         if held:
             # those kept are checked again without the stand-ins beside them: a -0.28 ms delay that
-            # passed beside two stand-ins explained 0.1 % of its channel alone, and was confirmed
+            # passed beside two stand-ins explained 5 % of what it left alone, and was confirmed
             # (vehicle-bending/indep at seed 20261231, run 14)
             sel, again = confirm_corrections(prob, sel, log)
             held_out = held_out + again
