@@ -324,6 +324,7 @@ ITEM_MUTATION_ALLOWED = {
     "diagnosis.vehicle._pipeline:select_with_form": "the selection log",
     "diagnosis.vehicle._mode:find_mode": "the selection log",
     "diagnosis.vehicle._mode:resize_mode": "the selection log",
+    "diagnosis.vehicle._mode:lowers_each": "the selection log",
     "campaign._campaign:_diagnose_all": "the campaign's log",
     "diagnosis.vehicle._adequacy:_named": "the extended model's nonlinear correction, filled finding by finding",
     "diagnosis.vehicle._residuals:_band_filter": "the residual channels filtered in their own dict",

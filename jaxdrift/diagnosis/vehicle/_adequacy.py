@@ -38,7 +38,7 @@ import scipy.linalg
 import scipy.signal
 import scipy.stats
 
-from ._mode import MODE, MODE_CHANNELS, Mode
+from ._mode import MODE, SHOWS_SHARE, Mode, drops
 from ._residuals import rms as _rms
 from ._nonlinear import AXLES, BumpStop, States, catalogue, model_states, signatures, travel_response
 
@@ -498,10 +498,6 @@ def not_rigid_finding(found: dict, bands_hz: tuple) -> dict:
             "confirmed": False, "evidence": ev + "."}
 
 
-#: a channel the mode "shows in": its part there is at least this share of the channel's residual
-SHOWS_SHARE = 0.1
-
-
 def mode_finding(prob, out: dict, mode: Mode, res1, model: dict) -> dict:
     """The report's ``unmodelled_mode`` finding (confirmed: every test of ``_mode.find_mode`` passed):
     the frequency with its interval (the widest of 1.96 standard errors, the two halves'
@@ -509,15 +505,10 @@ def mode_finding(prob, out: dict, mode: Mode, res1, model: dict) -> dict:
     shows in, the placement and the evidence. ``res1``: the extended model's residuals (``prob``'s
     pipeline carries ``mode``); without the mode they are ``res1`` plus its part, so the drop the
     evidence states is the mode's own."""
-    parts = prob.pipe._mode_parts
     shows, drop = [], {}
-    for nm in MODE_CHANNELS:
-        rows = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
-        part = np.asarray(parts[nm])[rows]
-        after = np.asarray(res1.channels[nm])[rows]
-        before = after + part
-        drop[nm] = (_rms(before), _rms(after))
-        if _rms(part) >= SHOWS_SHARE * _rms(before):
+    for nm, (part, before, after) in drops(prob, res1).items():
+        drop[nm] = (before, after)
+        if part >= SHOWS_SHARE * before:
             shows.append(nm)
     f0, f1 = out["halves"]["freqs"]
     half = max(1.96 * out["se_f"], abs(f0 - f1), abs(mode.freq_hz - out["candidate"].freq_hz))

@@ -37,6 +37,7 @@ import scipy.stats
 
 from .._cause import AbstractCause, DegreeOfFreedom
 from ._detectors import _force_hf_noise
+from ._residuals import rms as _rms
 
 #: the channels a chassis-mounted mass shows in (with pitch and heave prescribed)
 MODE_CHANNELS = ("heave", "moment")
@@ -599,3 +600,32 @@ def resize_mode(prob, fit, mode: Mode, log: list | None = None) -> Mode | None:
         log.append(f"unmodelled mode resized beside {[c.label for c in fit.causes]}: {new.freq_hz:.4g} Hz zeta "
                    f"{new.zeta:.3g} x {new.x:.3g} m mass {new.mass:.4g} kg" + ("" if ok else ": withdrawn"))
     return new if ok else None
+
+
+def drops(prob, res) -> dict:
+    """Per heave and moment channel, the RMS of the mode's part and of the residual without and with
+    it: ``res`` are the residuals of a model carrying the mode (``prob``'s pipeline), the causes
+    beside it as fitted with it."""
+    out = {}
+    for nm in MODE_CHANNELS:
+        rows = slice(prob.skip[nm], prob.skip[nm] + prob.rows[nm])
+        part, after = np.asarray(prob.pipe._mode_parts[nm])[rows], np.asarray(res.channels[nm])[rows]
+        out[nm] = (_rms(part), _rms(after + part), _rms(after))
+    return out
+
+
+#: a channel the mode "shows in": its part there is at least this share of the channel's residual
+SHOWS_SHARE = 0.1
+
+
+def lowers_each(prob, res, log: list | None = None) -> bool:
+    """Whether the mode lowers the residual of each channel it shows in (:func:`drops`). A mass on
+    its own spring does (the heave residual fell 8 to 1000 times on every mode of the modes and
+    Exudyn worlds); a chassis bending at 29.6 Hz read as 522 kg at 25.3 Hz raised it from 193 to
+    382 N, an offset and crosstalk on f1 beside it taking the mode's heave part back."""
+    d = drops(prob, res)
+    ok = all(after < before for part, before, after in d.values() if part >= SHOWS_SHARE * before)
+    if log is not None and not ok:
+        log.append(f"unmodelled mode raises a channel's residual beside the causes chosen (part, without, with: {d}): "
+                   "withdrawn")
+    return ok

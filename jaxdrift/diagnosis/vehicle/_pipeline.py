@@ -7,7 +7,7 @@ from ._adequacy import assess_model_form, mode_finding, not_rigid_finding
 from ...io._corrections import NO_CORRECTION
 from ._causes import _apply
 from ._detectors import read_signals
-from ._mode import carrying, look_for_mode, not_rigid, resize_mode
+from ._mode import carrying, look_for_mode, lowers_each, not_rigid, resize_mode
 from ._confirm import confirm, confirm_below_body, confirm_corrections, held_for_body, stand_in_targets
 from ._problem import _Problem
 from ._report import vehicle_report
@@ -104,6 +104,7 @@ def diagnose_vehicle_run(run: VehicleRun, model: dict | None = None, plots_dir=N
         # and with the mode moved their residual was 5.9 N where the same causes refitted leave
         # 0.28 N; a damper and a delay stood in for the difference (vehicle-modes/indep run 8)
         prob, sel0, form0 = select_with_form(rigid.with_pipe(carrying(pipe, mode)), log)
+        mode = mode if lowers_each(prob, sel0.fit.res, log) else None
     if mode_out["mode"] is not None and mode is None:
         # withdrawn: a resonance no linear cause makes that is no mass on its own spring either (a
         # chassis that bends reads as one, then moves beside the causes chosen): the body is not rigid
