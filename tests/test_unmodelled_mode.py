@@ -303,7 +303,7 @@ def test_a_mode_that_raises_a_channels_residual_is_withdrawn(tmp_path):
     on f1. The search named a mass of 522 kg at 25.3 Hz; beside the causes chosen with it (an offset
     of +953 N and -8.9 % crosstalk on f1, I x 0.935, all three confirmed) the mode's part raised the
     heave residual from 193 to 382 N RMS, the causes on f1 taking its heave part back. A mass on its
-    own spring lowers each channel it shows in (8 to 1000 times on every mode of the modes and
+    own spring lowers each channel it shows in (heave 16 to 2000 times on the 38 modes of the modes and
     Exudyn worlds): this one is withdrawn, the body is read as not rigid, and nothing is confirmed."""
     from benchmarks.validation import gen_exudyn as ge
 
