@@ -88,6 +88,21 @@ def _diagnose(paths, with_simulation=False, plots_dir=None):
                                 plots_dir=plots_dir)
 
 
+def _bending_body_first(tmp_path, seed: int, index: int, f_true: float | None = None) -> dict:
+    """The report of ``gen_exudyn.design_bending(30, seed)[index]`` with the re-simulation (the
+    scorecard's setting), asserting that the body finding leads (within 10 % of ``f_true`` where
+    given) and that no systematic cause is confirmed."""
+    from benchmarks.validation import gen_exudyn as ge
+
+    paths = ge.make_run(ge.design_bending(30, seed)[index], str(tmp_path))
+    rep = _diagnose(paths, with_simulation=True)
+    first = rep["findings"][0]
+    assert first["cause"] == "model_form" and first["axle"] == "body", rep["findings"]
+    assert f_true is None or abs(first["frequency_hz"] / f_true - 1) < 0.1, first
+    assert not [f for f in rep["findings"] if f["cause"] in SYSTEMATIC and f.get("confirmed")], rep["findings"]
+    return rep
+
+
 SYSTEMATIC = {"force_offset", "force_scale", "force_delay", "force_gain_drift", "force_crosstalk", "parameter_error",
               "model_form", "damper_asymmetry", "progressive_spring", "bump_stop"}
 
@@ -268,12 +283,7 @@ def test_a_cause_kept_beside_a_chassis_that_bends_is_checked_again_alone(tmp_pat
     left of the enforced moment (82.38 -> 82.29 N m), below the share a confirmed cause must
     explain. Checked again without the stand-ins, nothing is confirmed (the scorecard's setting,
     with the re-simulation; without it the bands size nothing alike)."""
-    from benchmarks.validation import gen_exudyn as ge
-
-    paths = ge.make_run(ge.design_bending(30, 20261231)[14], str(tmp_path))
-    rep = _diagnose(paths, with_simulation=True)  # the scorecard's setting: the re-simulation drops d4
-    assert rep["findings"][0]["cause"] == "model_form" and rep["findings"][0]["axle"] == "body", rep["findings"]
-    assert not [f for f in rep["findings"] if f["cause"] in SYSTEMATIC and f.get("confirmed")], rep["findings"]
+    rep = _bending_body_first(tmp_path, 20261231, 14)
     delay = next(f for f in rep["findings"] if f["cause"] == "force_delay")
     assert "small unexplained residual" in delay["evidence"], delay
 
@@ -287,14 +297,7 @@ def test_a_chassis_that_bends_is_judged_on_the_channels_it_acts_on(tmp_path):
     then confirmed -6.4 % crosstalk into f1 and a scale of 1.0345 on f1. Judged on the heave and
     moment rows it explains 35 %: the body finding leads, near the bending frequency, and nothing is
     confirmed."""
-    from benchmarks.validation import gen_exudyn as ge
-
-    paths = ge.make_run(ge.design_bending(30, 20261221)[23], str(tmp_path))
-    rep = _diagnose(paths, with_simulation=True)
-    first = rep["findings"][0]
-    assert first["cause"] == "model_form" and first["axle"] == "body", rep["findings"]
-    assert abs(first["frequency_hz"] / 22.66 - 1) < 0.1, first
-    assert not [f for f in rep["findings"] if f["cause"] in SYSTEMATIC and f.get("confirmed")], rep["findings"]
+    _bending_body_first(tmp_path, 20261221, 23, 22.66)
 
 
 @pytest.mark.tier2
@@ -305,11 +308,4 @@ def test_a_mode_that_raises_a_channels_residual_is_withdrawn(tmp_path):
     heave residual from 193 to 382 N RMS, the causes on f1 taking its heave part back. A mass on its
     own spring lowers each channel it shows in (heave 16 to 2000 times on the 38 modes of the modes and
     Exudyn worlds): this one is withdrawn, the body is read as not rigid, and nothing is confirmed."""
-    from benchmarks.validation import gen_exudyn as ge
-
-    paths = ge.make_run(ge.design_bending(30, 20261221)[28], str(tmp_path))
-    rep = _diagnose(paths, with_simulation=True)
-    first = rep["findings"][0]
-    assert first["cause"] == "model_form" and first["axle"] == "body", rep["findings"]
-    assert abs(first["frequency_hz"] / 29.57 - 1) < 0.1, first
-    assert not [f for f in rep["findings"] if f["cause"] in SYSTEMATIC and f.get("confirmed")], rep["findings"]
+    _bending_body_first(tmp_path, 20261221, 28, 29.57)

@@ -38,7 +38,7 @@ import scipy.linalg
 import scipy.signal
 import scipy.stats
 
-from ._mode import MODE, SHOWS_SHARE, Mode, drops
+from ._mode import MODE, Mode, drops, shows_in
 from ._residuals import rms as _rms
 from ._nonlinear import AXLES, BumpStop, States, catalogue, model_states, signatures, travel_response
 
@@ -505,11 +505,8 @@ def mode_finding(prob, out: dict, mode: Mode, res1, model: dict) -> dict:
     shows in, the placement and the evidence. ``res1``: the extended model's residuals (``prob``'s
     pipeline carries ``mode``); without the mode they are ``res1`` plus its part, so the drop the
     evidence states is the mode's own."""
-    shows, drop = [], {}
-    for nm, (part, before, after) in drops(prob, res1).items():
-        drop[nm] = (before, after)
-        if part >= SHOWS_SHARE * before:
-            shows.append(nm)
+    d = drops(prob, res1)
+    shows, drop = shows_in(d), {nm: (before, after) for nm, (_, before, after) in d.items()}
     f0, f1 = out["halves"]["freqs"]
     half = max(1.96 * out["se_f"], abs(f0 - f1), abs(mode.freq_hz - out["candidate"].freq_hz))
     share = mode.mass / model["m3"]
