@@ -119,6 +119,8 @@ WORLDS = [
     World("vehicle-modes/indep", "vehicle", "exudyn", 20261218, 32, 2, {"design": "modes"}),
     # a chassis with a first bending mode (15-30 Hz), the model given the rigid car (issue #48)
     World("vehicle-bending/indep", "vehicle", "exudyn", 20261221, 30, 0, {"design": "bending"}),
+    # a car in three dimensions on left and right tracks that differ, measured as a half-car (issue #48)
+    World("vehicle-car3d/indep", "vehicle", "exudyn", 20261222, 30, 0, {"design": "car3d"}),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
     # a second draw of the wide design, added after the first was tuned on (never tuned on itself)
@@ -157,7 +159,8 @@ def cases(world: World) -> list[dict]:
     if b == "exudyn":
         from benchmarks.validation import gen_exudyn as ge
 
-        return {"modes": ge.design_modes, "bending": ge.design_bending}.get(o.get("design"), ge.design)(world.n, world.seed)
+        designs = {"modes": ge.design_modes, "bending": ge.design_bending, "car3d": ge.design_car3d}
+        return designs.get(o.get("design"), ge.design)(world.n, world.seed)
     if b == "indep_clip":
         from benchmarks.validation import gen_vehicle as gv
 
@@ -253,13 +256,15 @@ def run_case(world_name: str, case: dict) -> dict:
             # the mass on its own spring (or the chassis's bending) is the run's first systematic
             # effect (its frequency the value)
             mode = [] if e is None else [{"cause": "unmodelled_mode", "value": e["frequency_hz"]}]
-            body = "rigid car" if e is None else (
+            c3 = full.get("car3d")
+            body = (f"3D car, track {c3['track']:.2f} m, centre of mass {100 * c3['y_cg']:+.1f} cm to the side, "
+                    f"tracks correlated {c3['coherence']:.2f}") if c3 else "rigid car" if e is None else (
                 f"bending chassis, front part {100 * e['share']:.0f} %, hinge {e['x_hinge']:.2f} m ahead, "
                 f"{e['frequency_hz']:.1f} Hz (free {e['free_hz']:.1f} Hz, damping ratio {e['damping_ratio']:.2f})"
                 if e.get("kind") == "bending" else
                 f"{e.get('kind', 'engine')} {100 * e['mass'] / full['car']['m3']:.0f} % on {e['frequency_hz']:.1f} Hz "
                 f"mounts {e['x']:.2f} m ahead")
-            rec.update(stratum=case["stratum"], truth=mode + full["effects"], model_form=e,
+            rec.update(stratum=case["stratum"], truth=mode + full["effects"], model_form=e or c3,
                        where=(f"{full['vehicle_kind']} {body}; road {full['road_class']} "
                               f"{full['road_interp']} {full['speed']:.0f} m/s {full['fs']:g} Hz {full['duration']:g} s "
                               f"{full['channel_set']}"))

@@ -105,3 +105,41 @@ def test_stiff_bending_chassis_is_the_rigid_car():
                            ("travel s1", ex["y1"] - ex["z1"], y[2] - y[0] - car["b"] * np.sin(y[3]))):
         err = np.max(np.abs(got - ref)) / np.ptp(ref)
         assert err < 1e-4, (name, err)
+
+
+def test_car3d_on_two_tracks_is_its_halfcar_on_their_mean():
+    """The whole-car world (``exudyn_car3d``: a 3D rigid body, four point-mass wheels, a spring-damper
+    and a tyre per corner): with its centre of mass on the centreline, on two independent class C
+    tracks at 15 m/s, its heave is jaxdrift's half-car's on the tracks' mean within 1e-7 m (measured
+    4.7e-9: the axles' sums are the half-car exactly), and its pitch and mean wheel heights within
+    1e-4 of their range (measured 1.8e-5 and 8e-6: the second order of a roll of 0.022 rad the
+    half-car does not have)."""
+    from benchmarks.validation.exudyn_car3d import compare
+
+    res = compare(t_end=1.0)
+    assert res["roll_range_rad"] > 5e-3  # the tracks differ: the car rolls, the comparison is not trivial
+    s = res["signals"]
+    assert s["z3"]["max_abs_diff"] < 1e-7, s["z3"]
+    for k in ("beta", "z1", "z2"):
+        assert s[k]["range"] > 1e-3 and s[k]["relative"] < 1e-4, (k, s[k])
+
+
+def test_car3d_starts_in_its_static_equilibrium():
+    """The whole car's static pose (``equilibrium3d``, our own solution of its force and moment
+    balance) is Exudyn's: on a flat road the car with its centre of mass 4 cm to the side stays
+    where it starts within 1e-12 (measured 0 to 1e-15), rolled towards the load (the left side down:
+    a negative roll about x forward, 0.011 rad), while its centreline's height and pitch are the
+    half-car's."""
+    import numpy as np
+
+    from benchmarks.validation import gen_vehicle as gv
+    from benchmarks.validation.exudyn_car3d import equilibrium3d, simulate_car3d
+
+    car = {**gv.VEHICLES["passenger"], "g": gv.G}
+    shape = {"track": 1.5, "y_cg": -0.04, "Ixx": 500.0}
+    out = simulate_car3d(car, (_Flat(), _Flat()), 15.0, -1.0, 0.5, 1000.0, shape)
+    for k in ("z3", "beta", "roll", "z1", "z2", "f1", "f2"):
+        assert np.ptp(out[k]) < 1e-12 * max(1.0, abs(out[k][0])), k
+    z1, z2, z3, beta = gv.equilibrium(car)[:4]
+    assert abs(out["z3"][0] - z3) < 1e-9 and abs(out["beta"][0] - beta) < 1e-6
+    assert equilibrium3d(car, shape)[1] < -1e-3

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from benchmarks.validation import gen_vehicle as gv
+from benchmarks.validation.exudyn_car3d import simulate_car3d
 from benchmarks.validation.exudyn_halfcar import bending_modes, hinge, rigid_equivalent, simulate_exudyn
 
 SUBSTEPS = 10
@@ -89,7 +90,19 @@ def design_bending(n: int, seed: int) -> list[dict]:
     15-30 Hz, the model given the rigid car of the same mass, centre of mass and inertia): a third
     each alone with force noise, with one sensor effect, or with an error of a chassis spring or
     damper."""
-    rng = np.random.default_rng([seed, 0xE42])
+    return _thirds(n, [seed, 0xE42], "bending")
+
+
+def design_car3d(n: int, seed: int) -> list[dict]:
+    """``n`` cases of the whole-car world (``CAR3D``: a car in three dimensions on a road whose left
+    and right tracks differ, measured as a half-car, the model given its half-car): a third each
+    alone with force noise, with one sensor effect, or with an error of a chassis spring or damper
+    (of both corners of the axle)."""
+    return _thirds(n, [seed, 0xE43], "car3d")
+
+
+def _thirds(n: int, salt: list, design: str) -> list[dict]:
+    rng = np.random.default_rng(salt)
     kinds = ("noise", "single", "param")
     order = rng.permutation(n)
     out = []
@@ -97,9 +110,23 @@ def design_bending(n: int, seed: int) -> list[dict]:
         stratum = kinds[j % 3]
         what = [list(gv.SENSOR[int(rng.integers(len(gv.SENSOR)))])] if stratum == "single" else (
             [["parameter_error", MODE_PARAMS[int(rng.integers(len(MODE_PARAMS)))]]] if stratum == "param" else [])
-        out.append({"index": i, "stratum": f"bending/{stratum}", "what": what, "seed": int(rng.integers(2**31)),
-                    "design": "bending"})
+        out.append({"index": i, "stratum": f"{design}/{stratum}", "what": what, "seed": int(rng.integers(2**31)),
+                    "design": design})
     return out
+
+
+#: the whole car (``design_car3d``): track [m], the centre of mass's distance to the side of the
+#: centreline [m] (either side), roll inertia as a share of ``m3 (track / 2) ** 2``, and the
+#: correlation of the right track's profile with the left's (0: independent tracks)
+CAR3D = {"track": (1.4, 1.7), "y_cg": (0.0, 0.04), "roll_share": (0.4, 0.8), "coherence": (0.0, 0.9)}
+
+
+def _car3d(rng, car: dict) -> dict:
+    C = CAR3D
+    w = float(rng.uniform(*C["track"]))
+    return {"kind": "car3d", "track": w, "y_cg": float(rng.choice([-1.0, 1.0]) * rng.uniform(*C["y_cg"])),
+            "Ixx": float(rng.uniform(*C["roll_share"]) * car["m3"] * (0.5 * w) ** 2),
+            "coherence": float(rng.uniform(*C["coherence"]))}
 
 
 def _bending(rng, car: dict) -> dict:
@@ -134,11 +161,13 @@ def make_case(case: dict) -> dict:
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     car = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
     car["g"] = gv.G
-    bending = None
+    bending = car3d = None
     if case.get("design") == "modes":
         engine = _mount(rng, car, case["mount"])
     elif case.get("design") == "bending":
         engine, bending = None, _bending(rng, car)
+    elif case.get("design") == "car3d":
+        engine, car3d = None, _car3d(rng, car)
     else:  # the first world's draws, unchanged
         me = float(rng.uniform(0.08, 0.12) * car["m3"])
         f_mount = float(rng.uniform(8.0, 15.0))
@@ -158,7 +187,8 @@ def make_case(case: dict) -> dict:
         if e["cause"] == "parameter_error":
             true_car[e["parameter"]] = car[e["parameter"]] * e["value"]
     effects.append({"cause": "force_noise", "value": float(math.exp(rng.uniform(math.log(0.5), math.log(3.0))))})
-    return {**case, "vehicle_kind": vkind, "car": true_car, "engine": engine, "bending": bending, "model": model,
+    return {**case, "vehicle_kind": vkind, "car": true_car, "engine": engine, "bending": bending, "car3d": car3d,
+            "model": model,
             "road_class": cls,
             "road_interp": str(rng.choice(["spline7", "linear"])), "speed": speed, "fs": fs, "duration": dur,
             "channels": chans, "channel_set": "_".join(chans), "precision": int(rng.integers(7, 10)), "t0": 0.0,
@@ -169,26 +199,16 @@ def make_case(case: dict) -> dict:
 
 def generate(case: dict) -> dict:
     """The measured columns of a case (gen_vehicle's contract)."""
-    car, eng, v, fs, T = case["car"], case["engine"], case["speed"], case["fs"], case["duration"]
+    v, fs, T = case["speed"], case["fs"], case["duration"]
     x0 = -v * case["lead_in"]
-    road = gv.FilteredRoad(np.random.default_rng(case["road_seed"]), case["road_class"], x0 + v * (T + 0.2) + 1.0,
-                           interp=case["road_interp"])
-    sim = simulate_exudyn(car, road, v, x0, T, fs, SUBSTEPS, engine=eng, fine=True, bending=case.get("bending"))
-    tf = sim["t"]
-    L = car["a"] + car["b"]
-    e1, de1 = np.array([road(x0 + v * t) for t in tf]).T
-    e2, de2 = np.array([road(x0 + v * t - L) for t in tf]).T
-    fine = {"f1": car["k1"] * (sim["z1"] - e1) + car["d1"] * (sim["v1"] - v * de1),
-            "f2": car["k2"] * (sim["z2"] - e2) + car["d2"] * (sim["v2"] - v * de2)}
-    xc = 0.0 if eng is None else eng["mass"] * eng["x"] / case["model"]["m3"]
-    sb = np.sin(sim["beta"])
-    fine["z3"] = sim["z3"] - xc * sb  # the rigid car's centre of mass, on the chassis
-    fine["beta"] = sim["beta"]
-    if case.get("bending"):  # the travel between the wheel and the chassis point above it
-        fine["s1"], fine["s2"] = sim["y1"] - sim["z1"], sim["y2"] - sim["z2"]
+    rng = np.random.default_rng(case["road_seed"])
+    road = gv.FilteredRoad(rng, case["road_class"], x0 + v * (T + 0.2) + 1.0, interp=case["road_interp"])
+    if case.get("car3d"):
+        fine = _car3d_signals(case, road, gv.FilteredRoad(rng, case["road_class"], x0 + v * (T + 0.2) + 1.0,
+                                                          interp=case["road_interp"]), x0)
     else:
-        fine["s1"] = sim["z3"] - sim["z1"] - car["b"] * sb
-        fine["s2"] = sim["z3"] - sim["z2"] + car["a"] * sb
+        fine = _halfcar_signals(case, road, x0)
+    tf = fine["t"]
     n = int(round(T * fs)) + 1
     tau = np.arange(n) / fs
     idx = np.arange(n) * SUBSTEPS
@@ -210,6 +230,50 @@ def generate(case: dict) -> dict:
     for c in case["channels"]:
         cols[c] = fine[c][idx]
     return cols
+
+
+def _halfcar_signals(case: dict, road, x0: float) -> dict:
+    """The planar car's (engine, bending chassis) signals at every solver step."""
+    car, eng, v, fs, T = case["car"], case["engine"], case["speed"], case["fs"], case["duration"]
+    sim = simulate_exudyn(car, road, v, x0, T, fs, SUBSTEPS, engine=eng, fine=True, bending=case.get("bending"))
+    tf = sim["t"]
+    L = car["a"] + car["b"]
+    e1, de1 = np.array([road(x0 + v * t) for t in tf]).T
+    e2, de2 = np.array([road(x0 + v * t - L) for t in tf]).T
+    fine = {"f1": car["k1"] * (sim["z1"] - e1) + car["d1"] * (sim["v1"] - v * de1),
+            "f2": car["k2"] * (sim["z2"] - e2) + car["d2"] * (sim["v2"] - v * de2)}
+    xc = 0.0 if eng is None else eng["mass"] * eng["x"] / case["model"]["m3"]
+    sb = np.sin(sim["beta"])
+    fine["z3"] = sim["z3"] - xc * sb  # the rigid car's centre of mass, on the chassis
+    fine["beta"] = sim["beta"]
+    if case.get("bending"):  # the travel between the wheel and the chassis point above it
+        fine["s1"], fine["s2"] = sim["y1"] - sim["z1"], sim["y2"] - sim["z2"]
+    else:
+        fine["s1"] = sim["z3"] - sim["z1"] - car["b"] * sb
+        fine["s2"] = sim["z3"] - sim["z2"] + car["a"] * sb
+    fine["t"] = tf
+    return fine
+
+
+def _car3d_signals(case: dict, left, other, x0: float) -> dict:
+    """The whole car's signals at every solver step, measured as a half-car; its right track is
+    ``coherence`` of the left one's profile and the rest ``other``'s (same class, same variance)."""
+    c = case["car3d"]
+    right = MixedRoad(left, other, c["coherence"])
+    return simulate_car3d(case["car"], (left, right), case["speed"], x0, case["duration"], case["fs"], c, SUBSTEPS,
+                          fine=True)
+
+
+class MixedRoad:
+    """``c`` of one track plus ``sqrt(1 - c^2)`` of an independent one: a profile of the same
+    spectrum whose correlation with the first is ``c``."""
+
+    def __init__(self, first, other, c: float):
+        self.first, self.other, self.c, self.s = first, other, c, math.sqrt(1.0 - c * c)
+
+    def __call__(self, x):
+        (e1, d1), (e2, d2) = self.first(x), self.other(x)
+        return self.c * e1 + self.s * e2, self.c * d1 + self.s * d2
 
 
 def make_run(case: dict, out_dir: str, name: str | None = None) -> dict:

@@ -1,0 +1,239 @@
+"""A whole car in three dimensions, built from a third-party multibody code's parts (Exudyn), on a
+road whose left and right tracks differ, measured as a half-car (issue 48): the axles' tyre forces
+summed, pitch, and heave on the car's centreline. A test world only (``pip install -e
+".[multibody]"``; never used by jaxdrift itself).
+
+Parts (Exudyn 1.13): the chassis a 3D rigid body (``NodeRigidBodyRxyz`` + ``ObjectRigidBody``, mass
+m3, pitch inertia I, roll inertia ``Ixx``, yaw ``Ixx + I``) whose centre of mass sits ``y_cg`` to
+the side of the centreline (a driver, a fuel tank: the one thing that couples roll into heave and
+pitch); four wheels, point masses (``NodePoint`` + ``MassPoint``, half the half-car's axle mass
+each) at half the track ``track`` either side of the centreline; each suspension a Cartesian
+spring-damper acting vertically between a wheel and the chassis point above it (half the axle's
+stiffness and damping); each tyre a Cartesian spring-damper from a ground point whose vertical force
+follows its own track of the road (a spring user function). Axes: x forward, z the paper's z
+(down), y = z x x; the body's rotation about y is the paper's pitch. The car starts in its static
+equilibrium on the level lead-in (``equilibrium3d``, exact in the angles; Exudyn's own static solver
+does not converge on a car nothing holds in x, y or yaw), integrated by the generalized-alpha
+solver (spectral radius 1) at ``substeps`` fixed steps per output sample.
+
+With the centre of mass on the centreline the car is its half-car exactly (to second order in the
+angles): the sums of each axle's forces make heave and pitch, and roll is a motion of its own. So
+``python benchmarks/validation/exudyn_car3d.py`` drives it on two different tracks and compares its
+heave, pitch and mean wheel travel with jaxdrift's half-car (``road_driven_rhs``, scipy at rtol
+1e-10) on the mean of the two tracks (``benchmarks/results/exudyn-car3d.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, os.path.dirname(os.path.dirname(HERE)))
+
+from benchmarks.validation import gen_vehicle as gv  # noqa: E402
+
+
+def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float, shape: dict,
+                   substeps: int = 10, fine: bool = False) -> dict:
+    """The car of half-car parameters ``p`` (each axle's mass, stiffness and damping shared by its two
+    corners) with ``shape`` (``track`` [m], ``y_cg`` [m], ``Ixx`` [kg m^2]) on ``roads`` (the left
+    and right tracks, each ``road(x) -> (zeta, dzeta/dx)``) at ``fs`` on [0, t_end] (at every
+    solver step if ``fine``). Returns ``t``; ``z3`` (the centreline's height at the centre of
+    mass's station) and ``beta`` (pitch); ``roll``; per axle ``z1``/``z2`` and ``v1``/``v2`` (the
+    mean of its wheels' heights and rates), ``s1``/``s2`` (its mean spring travel), ``f1``/``f2``
+    (its tyre forces summed); and ``corners`` (each wheel's height, front left first)."""
+    import exudyn as exu
+    from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
+                                      MarkerNodePosition, MassPoint, NodePoint, NodePointGround, NodeRigidBodyRxyz,
+                                      ObjectRigidBody, SensorNode)
+
+    a, b, g, w, yc = p["a"], p["b"], p["g"], shape["track"], shape["y_cg"]
+    z3, roll0, beta, wz = equilibrium3d(p, shape)
+    SC = exu.SystemContainer()
+    mbs = SC.AddSystem()
+    nb = mbs.AddNode(NodeRigidBodyRxyz(referenceCoordinates=[0.0] * 6,
+                                       initialCoordinates=[0.0, 0.0, z3, roll0, beta, 0.0]))
+    body = mbs.AddObject(ObjectRigidBody(mass=p["m3"], inertia=[shape["Ixx"], p["I"], shape["Ixx"] + p["I"],
+                                                                              0.0, 0.0, 0.0], nodeNumber=nb))
+    bodies, corners = [body], []
+    for axle, x in enumerate((b, -a)):
+        m, kt, dt_ = (p[f"{q}{axle + 1}"] for q in "mkd")
+        k, d = p[f"k{axle + 3}"], p[f"d{axle + 3}"]
+        lag = 0.0 if axle == 0 else a + b
+        for side, y in enumerate((-0.5 * w, 0.5 * w)):  # left (y < 0: z down, x forward), then right
+            n = mbs.AddNode(NodePoint(referenceCoordinates=[x, y - yc, 0.0],
+                                      initialCoordinates=[0.0, 0.0, wz[2 * axle + side]]))
+            bodies.append(mbs.AddObject(MassPoint(mass=0.5 * m, nodeNumber=n)))
+            mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
+            mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[x, y - yc, 0.0]))
+            # the wheel first: chassis point - wheel = the spring travel
+            mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, 0.0, 0.5 * k],
+                                                      damping=[0.0, 0.0, 0.5 * d]))
+            mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=mbs.AddNode(NodePointGround(referenceCoordinates=[x, y - yc, 0.0]))))
+            road = roads[side]
+
+            def tyre(mbs_, t, item, u, du, k_, d_, off, kt=0.5 * kt, dt_=0.5 * dt_, lag=lag, road=road):
+                e, de = road(x0 + v * t - lag)
+                return [0.0, 0.0, kt * (u[2] - e) + dt_ * (du[2] - v * de)]
+            mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, 0.0, 0.5 * kt],
+                                                      damping=[0.0, 0.0, 0.5 * dt_], springForceUserFunction=tyre))
+            corners.append({"node": n, "x": x, "y": y - yc, "axle": axle, "side": side, "kt": 0.5 * kt, "dt": 0.5 * dt_,
+                            "road": road, "lag": lag})
+    for obj in bodies:
+        mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, 0.0, g]))
+
+    def sensor(node, what):
+        return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
+                                        outputVariableType=getattr(exu.OutputVariableType, what)))
+    sensors = [sensor(nb, "Position"), sensor(nb, "RotationMatrix")]
+    for c in corners:
+        sensors += [sensor(c["node"], "Coordinates"), sensor(c["node"], "Coordinates_t")]
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    n_out = int(round(t_end * fs))
+    s.timeIntegration.numberOfSteps = n_out * substeps
+    s.timeIntegration.endTime = n_out / fs
+    s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
+    s.timeIntegration.verboseMode = 0
+    s.solution.file.write = False
+    s.solution.sensors.writePeriod = 1.0 / fs / (substeps if fine else 1)
+    exu.SolveDynamic(mbs, s)
+    data = [mbs.GetSensorStoredData(k) for k in sensors]
+    t = data[0][:, 0]
+    pos, R = data[0][:, 1:4], data[1][:, 1:10].reshape(-1, 3, 3)  # body -> global, row by row
+    centre = pos + R @ np.array([0.0, -yc, 0.0])  # the centreline below (above) the centre of mass
+    out = {"t": t, "z3": centre[:, 2], "beta": np.arcsin(-R[:, 2, 0]),
+           "roll": np.arctan2(R[:, 2, 1], R[:, 2, 2]), "corners": []}
+    acc = {k: np.zeros_like(t) for k in ("z1", "z2", "v1", "v2", "s1", "s2", "f1", "f2")}
+    for i, c in enumerate(corners):
+        zw = data[2 + 2 * i][:, 3]  # the node's displacement in z (its reference height is 0)
+        vw = data[3 + 2 * i][:, 3]
+        top = (pos + R @ np.array([c["x"], c["y"], 0.0]))[:, 2]
+        e, de = np.array([c["road"](x0 + v * ti - c["lag"]) for ti in t]).T
+        j = str(c["axle"] + 1)
+        acc["z" + j] += 0.5 * zw
+        acc["v" + j] += 0.5 * vw
+        acc["s" + j] += 0.5 * (top - zw)
+        acc["f" + j] += c["kt"] * (zw - e) + c["dt"] * (vw - v * de)
+        out["corners"].append(zw)
+    return {**out, **acc}
+
+
+def corner_points(p: dict, shape: dict) -> np.ndarray:
+    """The chassis points above the wheels, relative to the centre of mass (front left, front
+    right, rear left, rear right; x forward, y to the right)."""
+    w, yc = shape["track"], shape["y_cg"]
+    return np.array([[x, y - yc, 0.0] for x in (p["b"], -p["a"]) for y in (-0.5 * w, 0.5 * w)])
+
+
+def equilibrium3d(p: dict, shape: dict):
+    """The car's static pose on level road, exact in the angles (Exudyn's ``Rxyz`` rotation
+    ``Rx(roll) Ry(pitch)``): the centre of mass's height, roll, pitch and the four wheels' heights.
+    Each corner carries half its axle's spring and tyre."""
+    from exudyn.rigidBodyUtilities import RotXYZ2RotationMatrix
+    from scipy.optimize import fsolve
+
+    g, r = p["g"], corner_points(p, shape)
+    k = np.repeat([0.5 * p["k3"], 0.5 * p["k4"]], 2)
+    kt = np.repeat([0.5 * p["k1"], 0.5 * p["k2"]], 2)
+    mw = np.repeat([0.5 * p["m1"], 0.5 * p["m2"]], 2)
+
+    def residual(q):
+        zc, phi, th, *zw = q
+        R = np.asarray(RotXYZ2RotationMatrix([phi, th, 0.0]))
+        arm = r @ R.T  # each point's offset from the centre of mass, in the global frame
+        f = -k * (zc + arm[:, 2] - np.asarray(zw))  # the springs' vertical forces on the chassis
+        torque = np.cross(arm, np.stack([0 * f, 0 * f, f], axis=1)).sum(axis=0)
+        return [p["m3"] * g + f.sum(), torque[0], torque[1], *(mw * g - f - kt * np.asarray(zw))]
+
+    z1, z2, z3, beta = gv.equilibrium(p)[:4]
+    q = fsolve(residual, [z3, 0.0, beta, z1, z1, z2, z2], xtol=1e-13)
+    if np.max(np.abs(residual(q))) > 1e-6 * p["m3"] * g:
+        raise RuntimeError(f"no static equilibrium found for {p}, {shape}")
+    return float(q[0]), float(q[1]), float(q[2]), [float(x) for x in q[3:]]
+
+
+class MeanRoad:
+    """The mean of two tracks ``(zeta, dzeta/dx)``: what a half-car's one wheel per axle sees."""
+
+    def __init__(self, left, right):
+        self.left, self.right = left, right
+
+    def __call__(self, x):
+        (e1, d1), (e2, d2) = self.left(x), self.right(x)
+        return 0.5 * (e1 + e2), 0.5 * (d1 + d2)
+
+
+def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float = 5.0, fs: float = 1000.0,
+            substeps: int = 10, track: float = 1.5) -> dict:
+    """The car (centre of mass on its centreline) on two independent tracks against jaxdrift's
+    half-car on their mean: the largest differences in heave, pitch and mean wheel travel, against
+    each signal's range, and the roll the half-car does not have."""
+    from scipy.integrate import solve_ivp
+
+    import jax
+
+    from jaxdrift.io._csvio import DEFAULT_MODEL
+    from jaxdrift.models._halfcar import road_driven_rhs
+    from jaxdrift.models._params import HalfCarParams
+
+    p = {k: float(DEFAULT_MODEL[k]) for k in gv.KEYS}
+    x0 = -1.0
+    rng = np.random.default_rng(seed)
+    length = x0 + v * (t_end + 0.5) + p["a"] + p["b"] + 1.0
+    left, right = (gv.FilteredRoad(rng, road_class, length) for _ in range(2))
+    shape = {"track": track, "y_cg": 0.0, "Ixx": 0.3 * p["I"]}
+    t0 = time.time()
+    ex = simulate_car3d(p, (left, right), v, x0, t_end, fs, shape, substeps)
+    wall = time.time() - t0
+    road = MeanRoad(left, right)
+    jax.config.update("jax_enable_x64", True)
+    P = HalfCarParams(**p)
+    f = jax.jit(lambda t, y, e, de: road_driven_rhs(t, y, P, (e[0], e[1]), (de[0], de[1])))
+
+    def rhs(t, y):
+        x1 = x0 + v * t
+        e1, de1 = road(x1)
+        e2, de2 = road(x1 - p["a"] - p["b"])
+        return np.asarray(f(t, y, np.array([e1, e2]), np.array([v * de1, v * de2])), float)
+
+    sol = solve_ivp(rhs, (0.0, float(ex["t"][-1])), gv.equilibrium(p), method="DOP853", rtol=1e-10, atol=1e-12,
+                    dense_output=True)
+    y = sol.sol(ex["t"])
+    ref = {"z1": y[0], "z2": y[1], "z3": y[2], "beta": y[3]}
+    out = {}
+    for k, r in ref.items():
+        d = float(np.max(np.abs(ex[k] - r)))
+        out[k] = {"max_abs_diff": d, "range": float(np.ptp(r)), "relative": d / float(np.ptp(r))}
+    return {"road_class": road_class, "speed_m_s": v, "duration_s": t_end, "fs_hz": fs, "substeps": substeps,
+            "track_m": track, "roll_range_rad": float(np.ptp(ex["roll"])), "exudyn_wall_s": wall, "signals": out}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--duration", type=float, default=20.0)
+    ap.add_argument("--substeps", type=int, default=10)
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results", "exudyn-car3d.json"))
+    a = ap.parse_args(argv)
+    import exudyn
+
+    res = compare(t_end=a.duration, substeps=a.substeps)
+    res.update(machine=platform.platform(), python=platform.python_version(), exudyn=exudyn.__version__)
+    with open(a.out, "w") as fh:
+        json.dump(res, fh, indent=1)
+    for k, s in res["signals"].items():
+        print(f"{k}: max |exudyn - jaxdrift| = {s['max_abs_diff']:.3g} ({s['relative']:.2g} of its range)")
+    print(f"roll (the half-car has none): {res['roll_range_rad']:.3g} rad peak to peak")
+    print(f"Exudyn: {res['exudyn_wall_s']:.1f} s for {a.duration:g} s at {res['fs_hz']:g} Hz x {a.substeps} steps")
+
+
+if __name__ == "__main__":
+    main()
