@@ -17,6 +17,8 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   a seat or payload (3-6 Hz) on its spring, or the rigid car (the effect-free check), each alone, with
   a sensor effect or with an error of a chassis spring or damper; ``vehicle-bending/indep``: its
   chassis in two parts on a hinge (a first bending mode of 15-30 Hz, ``gen_exudyn.design_bending``);
+  ``vehicle-car3d/indep``: a car in three dimensions on left and right tracks that differ, measured
+  as a half-car (``gen_exudyn.design_car3d``; its truth the sensor and parameter effects alone);
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep``, ``attitude-wide/indep`` and ``attitude-wide2/indep``:

@@ -22,6 +22,11 @@ the true one, the model given the drawn one).
 ``design_bending``: the bending-chassis world (scorecard ``vehicle-bending/indep``): the chassis in
 two parts on a hinge (a first bending mode of 15-30 Hz), pitch and heave measured on the part that
 holds the centre of mass, alone, with a sensor effect or with a chassis spring or damper error.
+
+``design_car3d``: the whole-car world (scorecard ``vehicle-car3d/indep``): a car in three dimensions
+(``exudyn_car3d.py``) on left and right tracks that differ (``CAR3D``), measured as a half-car, the
+model given its half-car; the centre of mass up to 4 cm to the side couples its roll into heave and
+pitch. Its strata are the bending world's.
 """
 
 from __future__ import annotations
