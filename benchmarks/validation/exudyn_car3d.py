@@ -161,6 +161,25 @@ def equilibrium3d(p: dict, shape: dict):
     return float(q[0]), float(q[1]), float(q[2]), [float(x) for x in q[3:]]
 
 
+def roll_mode(p: dict, shape: dict) -> dict:
+    """The car's linear modes about its static pose (our own small model, not Exudyn's; coordinates
+    the centre of mass's height, roll, pitch and the four wheels' heights): ``frequency_hz`` and
+    ``roll_share`` of the mode with the largest share of its kinetic energy in roll."""
+    r = corner_points(p, shape)
+    M = np.diag([p["m3"], shape["Ixx"], p["I"]] + [0.5 * p["m1"]] * 2 + [0.5 * p["m2"]] * 2)
+    K = np.zeros((7, 7))
+    for i, ((x, y, _), k, kt) in enumerate(zip(r, np.repeat([p["k3"], p["k4"]], 2), np.repeat([p["k1"], p["k2"]], 2))):
+        j = np.zeros(7)
+        j[:3] = 1.0, y, -x  # the chassis point's height: z + y roll - x pitch
+        j[3 + i] = -1.0
+        K += 0.5 * k * np.outer(j, j)
+        K[3 + i, 3 + i] += 0.5 * kt
+    w2, V = np.linalg.eig(np.linalg.solve(M, K))
+    share = [M[1, 1] * V[1, i].real ** 2 / (V[:, i].real @ M @ V[:, i].real) for i in range(7)]
+    i = int(np.argmax(share))
+    return {"frequency_hz": float(math.sqrt(w2[i].real) / (2 * math.pi)), "roll_share": float(share[i])}
+
+
 class MeanRoad:
     """The mean of two tracks ``(zeta, dzeta/dx)``: what a half-car's one wheel per axle sees."""
 

@@ -37,7 +37,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 
 from benchmarks.validation import gen_vehicle as gv
-from benchmarks.validation.exudyn_car3d import simulate_car3d
+from benchmarks.validation.exudyn_car3d import roll_mode, simulate_car3d
 from benchmarks.validation.exudyn_halfcar import bending_modes, hinge, rigid_equivalent, simulate_exudyn
 
 SUBSTEPS = 10
@@ -129,9 +129,10 @@ CAR3D = {"track": (1.4, 1.7), "y_cg": (0.0, 0.04), "roll_share": (0.4, 0.8), "co
 def _car3d(rng, car: dict) -> dict:
     C = CAR3D
     w = float(rng.uniform(*C["track"]))
-    return {"kind": "car3d", "track": w, "y_cg": float(rng.choice([-1.0, 1.0]) * rng.uniform(*C["y_cg"])),
-            "Ixx": float(rng.uniform(*C["roll_share"]) * car["m3"] * (0.5 * w) ** 2),
-            "coherence": float(rng.uniform(*C["coherence"]))}
+    shape = {"kind": "car3d", "track": w, "y_cg": float(rng.choice([-1.0, 1.0]) * rng.uniform(*C["y_cg"])),
+             "Ixx": float(rng.uniform(*C["roll_share"]) * car["m3"] * (0.5 * w) ** 2),
+             "coherence": float(rng.uniform(*C["coherence"]))}
+    return {**shape, "roll_hz": roll_mode(car, shape)["frequency_hz"]}
 
 
 def _bending(rng, car: dict) -> dict:

@@ -486,7 +486,8 @@ def not_rigid_finding(found: dict, bands_hz: tuple) -> dict:
               f"negative mass in the vertical enforced force and the enforced moment, z = {found['z']:.3g}; {oos}): "
               f"no parameter, sensor effect or mass on its own spring makes that. A part of the body that carries an ")
     ev += (f"axle's force moves against the part pitch and heave are measured on: a chassis that bends (its first "
-           f"bending mode), or the motion sensors on a part that moves against the rest. The model's rigid body "
+           f"bending mode), the motion sensors on a part that moves against the rest, or a roll the half-car lacks "
+           f"where heave is measured beside the centre of mass. The model's rigid body "
            f"lacks it (its part of the enforced moment: {rms['moment']:.4g} N m RMS; the enforced moment's power "
            f"peaks at {found['peak_hz']:.3g} Hz, where such a mode would ring)")
     ev += (f"; the other findings are compared below {bands_hz[-1]:.3g} Hz, where the body moves nearly as one, and "
