@@ -579,14 +579,15 @@ def score_world(world: World, recs: list[dict]) -> dict:
             why.append("FALSE ALARM")
         if s["extra_confirmed"]:
             why.append("EXTRA " + ", ".join(s["extra_confirmed"]))
-        bad = [k for k, v in s["coverage"].items() if not v]
+        bad = [k for k, v in s["coverage"].items() if not v and k != "roll/named"]  # roll is not asked for
         if bad:
             why.append("INTERVAL " + ", ".join(bad))
         if r.get("clean_reference") and s["reference_flags"]:
             why.append(f"REFERENCE FLAGS {s['reference_flags']}")
         if why:
             truth = ", ".join(f"{'%s:%s' % _target(e) if _target(e)[1] else e['cause']}={_fmt(e['value'])}"
-                              + (f" (z {e['visibility']:.3g})" if "visibility" in e else "") for e in r["truth"])
+                              + (f" (z {e['visibility']:.3g})" if "visibility" in e else "")
+                              + (" (optional)" if e.get("optional") else "") for e in r["truth"])
             got = ", ".join(f"{'%s:%s' % _target(f) if _target(f)[1] else f['cause']}={_fmt(f.get('estimate'))}"
                             for f in r["findings"][:4])
             misses.append(f"run {r['index']} [{r['stratum']}] {r.get('where', '')}: truth {truth}; reported {got} -- "
