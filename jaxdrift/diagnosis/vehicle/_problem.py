@@ -234,6 +234,52 @@ class _Problem:
         sigma, _, dof = self.lowband_levels(r, gains, ir)
         return sigma, dof
 
+    def _lowband_parts(self, r: np.ndarray, gains: dict | None, ir: dict | None) -> dict:
+        """Per residual channel the force noise is measured on (``_lowband_channels``): its low
+        band (``lowband_levels``), the sensor noise's power there, its low-passed noise response
+        per force channel and their summed energy (the power per sample unit noise gives it)."""
+        gains = gains or {}
+        ir = self.ir if ir is None else ir
+        fs = 1.0 / self.pipe.h
+        fc = lowband_cutoff(fs)
+        sos = scipy.signal.butter(6, fc, fs=fs, output="sos")
+        blocks = self._blocks(r[:, None])
+        parts = {}
+        for nm in self.names:
+            if nm == "static":
+                continue
+            x = blocks[nm][:, 0]
+            L = len(x)
+            k = slice(L // 20, L - L // 20)
+            xl = scipy.signal.sosfiltfilt(sos, x)[k]
+            parts[nm] = (xl, self._motion_lowband_power(nm, sos, k))
+        out = {}
+        for nm in self._lowband_channels(parts):
+            xl, motion_pw = parts[nm]
+            unit, hl = 0.0, {}
+            for ch in FORCE_CHANNELS:
+                h = ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
+                pad = np.zeros(int(4 * fs / fc))
+                hl[ch] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
+                unit += float(np.sum(hl[ch] ** 2))
+            out[nm] = (xl, motion_pw, hl, unit)
+        return out
+
+    def lowband_channel_levels(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None) -> dict:
+        """Per channel of ``lowband_levels``, the level its low band gives alone (sensor noise
+        taken out) and that level's degrees of freedom: white force noise gives every channel
+        one level, an error the model makes in one equation does not (a roll coupled into the
+        heave the model is compared on moves the vertical force, not the moment)."""
+        out = {}
+        for nm, (xl, motion_pw, hl, unit) in self._lowband_parts(r, gains, ir).items():
+            den = unit * len(xl)
+            if den <= 0:
+                continue
+            ccf = sum(scipy.signal.correlate(h, h, mode="full", method="fft") for h in hl.values())
+            dof = 2.0 * den * den / max(2.0 * len(xl) * float(np.sum(ccf ** 2)), 1e-300)
+            out[nm] = (math.sqrt(max(float(np.sum(xl * xl)) - motion_pw * len(xl), 0.0) / den), dof)
+        return out
+
     def lowband_levels(self, r: np.ndarray, gains: dict | None = None,
                        ir: dict | None = None) -> tuple[float, float, float]:
         """Force-noise level from the residual's low band with the sensor noise found on the
@@ -251,31 +297,10 @@ class _Problem:
         ``ir``: impulse responses of the fitted parameters (default: the model's); the residual
         keeps the model's row weighting either way.
         """
-        gains = gains or {}
-        ir = self.ir if ir is None else ir
-        fs = 1.0 / self.pipe.h
-        fc = lowband_cutoff(fs)
-        sos = scipy.signal.butter(6, fc, fs=fs, output="sos")
-        blocks = self._blocks(r[:, None])
         num = den = motion = 0.0
         hls, lens = {}, {}
-        parts = {}
-        for nm in self.names:
-            if nm == "static":
-                continue
-            x = blocks[nm][:, 0]
-            L = len(x)
-            k = slice(L // 20, L - L // 20)
-            xl = scipy.signal.sosfiltfilt(sos, x)[k]
-            parts[nm] = (xl, self._motion_lowband_power(nm, sos, k))
-        for nm in self._lowband_channels(parts):
-            xl, motion_pw = parts[nm]
-            unit = 0.0
-            for ch in FORCE_CHANNELS:
-                h = ir[(nm, ch)][0] / self.noise_std[nm] * gains.get(ch, 1.0)
-                pad = np.zeros(int(4 * fs / fc))
-                hls[(nm, ch)] = scipy.signal.sosfiltfilt(sos, np.concatenate([pad, h, pad]))
-                unit += float(np.sum(hls[(nm, ch)] ** 2))
+        for nm, (xl, motion_pw, hl, unit) in self._lowband_parts(r, gains, ir).items():
+            hls.update({(nm, ch): h for ch, h in hl.items()})
             lens[nm] = len(xl)
             num += float(np.sum(xl * xl))
             motion += motion_pw * len(xl)
