@@ -248,7 +248,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
             src += (f"; with the sensor noise of the measured motion left in, the low band gives "
                     f"{with_motion:.3g} N, the upper end of the interval")
     level = sigma  # the level the finding reports
-    if dynamic and from_lowband and kind == "estimate":
+    if dynamic and from_lowband and kind == "estimate" and found:  # (a level too small to report is a bound already)
         apart = _levels_apart(prob.lowband_channel_levels(r, gains, ir))
         if apart is not None:
             # white force noise gives every residual channel one level: where they differ, the
