@@ -25,11 +25,8 @@ heave, pitch and mean wheel travel with jaxdrift's half-car (``road_driven_rhs``
 
 from __future__ import annotations
 
-import argparse
-import json
 import math
 import os
-import platform
 import sys
 import time
 
@@ -39,6 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(os.path.dirname(HERE)))
 
 from benchmarks.validation import gen_vehicle as gv  # noqa: E402
+from benchmarks.validation.exudyn_halfcar import node_sensor, solve_stored  # noqa: E402
 
 
 def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float, shape: dict,
@@ -53,7 +51,7 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
     import exudyn as exu
     from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
                                       MarkerNodePosition, MassPoint, NodePoint, NodePointGround, NodeRigidBodyRxyz,
-                                      ObjectRigidBody, SensorNode)
+                                      ObjectRigidBody)
 
     a, b, g, w, yc = p["a"], p["b"], p["g"], shape["track"], shape["y_cg"]
     z3, roll0, beta, wz = equilibrium3d(p, shape)
@@ -91,22 +89,11 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
         mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, 0.0, g]))
 
     def sensor(node, what):
-        return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
-                                        outputVariableType=getattr(exu.OutputVariableType, what)))
+        return node_sensor(mbs, node, what)
     sensors = [sensor(nb, "Position"), sensor(nb, "RotationMatrix")]
     for c in corners:
         sensors += [sensor(c["node"], "Coordinates"), sensor(c["node"], "Coordinates_t")]
-    mbs.Assemble()
-    s = exu.SimulationSettings()
-    n_out = int(round(t_end * fs))
-    s.timeIntegration.numberOfSteps = n_out * substeps
-    s.timeIntegration.endTime = n_out / fs
-    s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
-    s.timeIntegration.verboseMode = 0
-    s.solution.file.write = False
-    s.solution.sensors.writePeriod = 1.0 / fs / (substeps if fine else 1)
-    exu.SolveDynamic(mbs, s)
-    data = [mbs.GetSensorStoredData(k) for k in sensors]
+    data = solve_stored(mbs, sensors, t_end, fs, substeps, fine)
     t = data[0][:, 0]
     pos, R = data[0][:, 1:4], data[1][:, 1:10].reshape(-1, 3, 3)  # body -> global, row by row
     centre = pos + R @ np.array([0.0, -yc, 0.0])  # the centreline below (above) the centre of mass
@@ -196,13 +183,8 @@ def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float 
     """The car (centre of mass on its centreline) on two independent tracks against jaxdrift's
     half-car on their mean: the largest differences in heave, pitch and mean wheel travel, against
     each signal's range, and the roll the half-car does not have."""
-    from scipy.integrate import solve_ivp
-
-    import jax
-
+    from benchmarks.validation.exudyn_halfcar import against_jaxdrift
     from jaxdrift.io._csvio import DEFAULT_MODEL
-    from jaxdrift.models._halfcar import road_driven_rhs
-    from jaxdrift.models._params import HalfCarParams
 
     p = {k: float(DEFAULT_MODEL[k]) for k in gv.KEYS}
     x0 = -1.0
@@ -213,45 +195,16 @@ def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float 
     t0 = time.time()
     ex = simulate_car3d(p, (left, right), v, x0, t_end, fs, shape, substeps)
     wall = time.time() - t0
-    road = MeanRoad(left, right)
-    jax.config.update("jax_enable_x64", True)
-    P = HalfCarParams(**p)
-    f = jax.jit(lambda t, y, e, de: road_driven_rhs(t, y, P, (e[0], e[1]), (de[0], de[1])))
-
-    def rhs(t, y):
-        x1 = x0 + v * t
-        e1, de1 = road(x1)
-        e2, de2 = road(x1 - p["a"] - p["b"])
-        return np.asarray(f(t, y, np.array([e1, e2]), np.array([v * de1, v * de2])), float)
-
-    sol = solve_ivp(rhs, (0.0, float(ex["t"][-1])), gv.equilibrium(p), method="DOP853", rtol=1e-10, atol=1e-12,
-                    dense_output=True)
-    y = sol.sol(ex["t"])
-    ref = {"z1": y[0], "z2": y[1], "z3": y[2], "beta": y[3]}
-    out = {}
-    for k, r in ref.items():
-        d = float(np.max(np.abs(ex[k] - r)))
-        out[k] = {"max_abs_diff": d, "range": float(np.ptp(r)), "relative": d / float(np.ptp(r))}
     return {"road_class": road_class, "speed_m_s": v, "duration_s": t_end, "fs_hz": fs, "substeps": substeps,
-            "track_m": track, "roll_range_rad": float(np.ptp(ex["roll"])), "exudyn_wall_s": wall, "signals": out}
+            "track_m": track, "roll_range_rad": float(np.ptp(ex["roll"])), "exudyn_wall_s": wall,
+            "signals": against_jaxdrift(p, MeanRoad(left, right), v, x0, ex)}
 
 
 def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--duration", type=float, default=20.0)
-    ap.add_argument("--substeps", type=int, default=10)
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results", "exudyn-car3d.json"))
-    a = ap.parse_args(argv)
-    import exudyn
+    from benchmarks.validation import exudyn_halfcar
 
-    res = compare(t_end=a.duration, substeps=a.substeps)
-    res.update(machine=platform.platform(), python=platform.python_version(), exudyn=exudyn.__version__)
-    with open(a.out, "w") as fh:
-        json.dump(res, fh, indent=1)
-    for k, s in res["signals"].items():
-        print(f"{k}: max |exudyn - jaxdrift| = {s['max_abs_diff']:.3g} ({s['relative']:.2g} of its range)")
-    print(f"roll (the half-car has none): {res['roll_range_rad']:.3g} rad peak to peak")
-    print(f"Exudyn: {res['exudyn_wall_s']:.1f} s for {a.duration:g} s at {res['fs_hz']:g} Hz x {a.substeps} steps")
+    exudyn_halfcar.main(argv, compare, "exudyn-car3d.json", __doc__, lambda res: [
+        f"roll (the half-car has none): {res['roll_range_rad']:.3g} rad peak to peak"])
 
 
 if __name__ == "__main__":

@@ -49,7 +49,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     import exudyn as exu
     from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
                                       MarkerNodePosition, MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
-                                      ObjectRigidBody2D, SensorNode)
+                                      ObjectRigidBody2D)
     from exudyn.itemInterface import CoordinateSpringDamper, MarkerNodeCoordinate, RevoluteJoint2D
 
     a, b, g = p["a"], p["b"], p["g"]
@@ -96,8 +96,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     for obj in bodies:
         mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, g, 0.0]))
     def sensor(node, what):
-        return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
-                                        outputVariableType=getattr(exu.OutputVariableType, what)))
+        return node_sensor(mbs, node, what)
     sensors = [sensor(q["node"], "Coordinates") for q in parts]
     if engine is not None:
         sensors.append(sensor(ne, "Coordinates"))
@@ -119,17 +118,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, kt, 0.0], damping=[0.0, dt_, 0.0],
                                             springForceUserFunction=tyre))
         sensors += [sensor(n, "Coordinates"), sensor(n, "Coordinates_t")]
-    mbs.Assemble()
-    s = exu.SimulationSettings()
-    n_out = int(round(t_end * fs))
-    s.timeIntegration.numberOfSteps = n_out * substeps
-    s.timeIntegration.endTime = n_out / fs
-    s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
-    s.timeIntegration.verboseMode = 0
-    s.solution.file.write = False
-    s.solution.sensors.writePeriod = 1.0 / fs / (substeps if fine else 1)
-    exu.SolveDynamic(mbs, s)
-    data = [mbs.GetSensorStoredData(k) for k in sensors]
+    data = solve_stored(mbs, sensors, t_end, fs, substeps, fine)
     ch = data[0]
     out = {"t": ch[:, 0], "z3": ch[:, 2], "beta": -ch[:, 3]}
     if bending is not None:
@@ -146,6 +135,34 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
         data = data[1:]
     out.update(z1=data[1][:, 2], v1=data[2][:, 2], z2=data[3][:, 2], v2=data[4][:, 2])
     return out
+
+
+def node_sensor(mbs, node: int, what: str) -> int:
+    """A sensor storing ``what`` (an ``exudyn.OutputVariableType`` name) of ``node`` in memory."""
+    import exudyn as exu
+    from exudyn.itemInterface import SensorNode
+
+    return mbs.AddSensor(SensorNode(nodeNumber=node, storeInternal=True, writeToFile=False,
+                                    outputVariableType=getattr(exu.OutputVariableType, what)))
+
+
+def solve_stored(mbs, sensors: list, t_end: float, fs: float, substeps: int, fine: bool) -> list:
+    """Assemble ``mbs``, integrate it by the generalized-alpha solver (spectral radius 1: no
+    numerical damping) at ``substeps`` fixed steps per sample of ``fs`` to ``t_end``, and return
+    each sensor's stored data (at every step if ``fine``, else at ``fs``)."""
+    import exudyn as exu
+
+    mbs.Assemble()
+    s = exu.SimulationSettings()
+    n_out = int(round(t_end * fs))
+    s.timeIntegration.numberOfSteps = n_out * substeps
+    s.timeIntegration.endTime = n_out / fs
+    s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
+    s.timeIntegration.verboseMode = 0
+    s.solution.file.write = False
+    s.solution.sensors.writePeriod = 1.0 / fs / (substeps if fine else 1)
+    exu.SolveDynamic(mbs, s)
+    return [mbs.GetSensorStoredData(k) for k in sensors]
 
 
 def split_chassis(p: dict, bending: dict) -> list[dict]:
@@ -213,22 +230,30 @@ def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float 
             substeps: int = 10) -> dict:
     """Exudyn's half-car against jaxdrift's equations on one road: the largest differences in heave,
     pitch and wheel travel, against each signal's range."""
-    from scipy.integrate import solve_ivp
-
     from jaxdrift.io._csvio import DEFAULT_MODEL
-    from jaxdrift.models._halfcar import road_driven_rhs
-    from jaxdrift.models._params import HalfCarParams
 
     p = {k: float(DEFAULT_MODEL[k]) for k in gv.KEYS}
-    P = HalfCarParams(**p)
     x0 = -1.0
     road = gv.FilteredRoad(np.random.default_rng(seed), road_class, x0 + v * (t_end + 0.5) + 1.0)
     t0 = time.time()
     ex = simulate_exudyn(p, road, v, x0, t_end, fs, substeps)
     wall = time.time() - t0
+    return {"road_class": road_class, "speed_m_s": v, "duration_s": t_end, "fs_hz": fs, "substeps": substeps,
+            "exudyn_wall_s": wall, "signals": against_jaxdrift(p, road, v, x0, ex)}
+
+
+def against_jaxdrift(p: dict, road, v: float, x0: float, ex: dict) -> dict:
+    """The largest differences of ``ex``'s wheel heights, heave and pitch from jaxdrift's half-car
+    (``road_driven_rhs``, integrated by scipy's DOP853 at rtol 1e-10 from the static pose) on
+    ``road`` at ``ex``'s times, each with the signal's range and their ratio."""
+    from scipy.integrate import solve_ivp
 
     import jax
 
+    from jaxdrift.models._halfcar import road_driven_rhs
+    from jaxdrift.models._params import HalfCarParams
+
+    P = HalfCarParams(**p)
     jax.config.update("jax_enable_x64", True)
     f = jax.jit(lambda t, y, e, de: road_driven_rhs(t, y, P, (e[0], e[1]), (de[0], de[1])))
 
@@ -241,20 +266,21 @@ def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float 
     sol = solve_ivp(rhs, (0.0, float(ex["t"][-1])), gv.equilibrium(p), method="DOP853", rtol=1e-10, atol=1e-12,
                     dense_output=True)
     y = sol.sol(ex["t"])
-    ref = {"z1": y[0], "z2": y[1], "z3": y[2], "beta": y[3]}
     out = {}
-    for k, r in ref.items():
+    for k, r in {"z1": y[0], "z2": y[1], "z3": y[2], "beta": y[3]}.items():
         out[k] = {"max_abs_diff": float(np.max(np.abs(ex[k] - r))), "range": float(np.ptp(r)),
                   "relative": float(np.max(np.abs(ex[k] - r)) / np.ptp(r))}
-    return {"road_class": road_class, "speed_m_s": v, "duration_s": t_end, "fs_hz": fs, "substeps": substeps,
-            "exudyn_wall_s": wall, "signals": out}
+    return out
 
 
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main(argv=None, compare=compare, out_name="exudyn-halfcar.json", doc=__doc__, extra=lambda res: []):
+    """The comparison's command line (also the whole car's, ``exudyn_car3d``): runs ``compare``,
+    writes its JSON with the machine and versions to ``results/out_name`` and prints its lines
+    (and ``extra(res)``'s)."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
     ap.add_argument("--duration", type=float, default=20.0)
     ap.add_argument("--substeps", type=int, default=10)
-    ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results", "exudyn-halfcar.json"))
+    ap.add_argument("--out", default=os.path.join(os.path.dirname(HERE), "results", out_name))
     a = ap.parse_args(argv)
     import exudyn
 
@@ -264,6 +290,8 @@ def main(argv=None):
         json.dump(res, fh, indent=1)
     for k, s in res["signals"].items():
         print(f"{k}: max |exudyn - jaxdrift| = {s['max_abs_diff']:.3g} ({s['relative']:.2g} of its range)")
+    for line in extra(res):
+        print(line)
     print(f"Exudyn: {res['exudyn_wall_s']:.1f} s for {a.duration:g} s at {res['fs_hz']:g} Hz x {a.substeps} steps")
 
 

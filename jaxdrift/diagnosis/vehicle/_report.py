@@ -123,6 +123,25 @@ def _levels_apart(levels: dict):
     return (n_lo, s_lo, d_lo), (n_hi, s_hi, d_hi)
 
 
+def _channel_bound(levels: dict, sigma: float, hi: float):
+    """Where the channels' low-band levels disagree (``_levels_apart``): the level to report, the
+    upper end of its interval and the evidence clause; else None. White force noise gives every
+    residual channel one level: where they differ, the band holds an error of the model's too (an
+    independent whole car whose centre of mass sat 3.7 cm beside the centreline where heave was
+    measured: its roll gave the heave channel 197 N, the moment and spring travels 2.8-4.2 N, for
+    2.75 N of noise), and the lowest channel's level bounds the noise."""
+    apart = _levels_apart(levels)
+    if apart is None:
+        return None
+    (n_lo, s_lo, d_lo), (n_hi, s_hi, _) = apart
+    level = sigma
+    if s_lo < sigma:
+        level, hi = s_lo, _chi2_sigma_interval(s_lo, d_lo)[1]
+    return level, hi, (f"; but its channels do not agree ({n_hi} alone gives {s_hi:.3g} N, {n_lo} {s_lo:.3g} N), "
+                       f"where white force noise gives every channel one level: the band holds an error of the "
+                       f"model's besides the noise, so the smallest level, {level:.3g} N, is an upper bound")
+
+
 def _shared_text(shared: tuple, hf: float) -> str:
     """The evidence clause for road content both forces share at the top of the band."""
     return (f"; the forces' 4th differences give {hf:.3g} N, and the two forces share that content "
@@ -249,19 +268,11 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                     f"{with_motion:.3g} N, the upper end of the interval")
     level = sigma  # the level the finding reports
     if dynamic and from_lowband and kind == "estimate" and found:  # (a level too small to report is a bound already)
-        apart = _levels_apart(prob.lowband_channel_levels(r, gains, ir))
-        if apart is not None:
-            # white force noise gives every residual channel one level: where they differ, the
-            # band holds more than noise (an independent whole car whose centre of mass sat 3.7 cm
-            # beside the centreline where heave was measured: its roll gave the heave channel
-            # 197 N, the moment and spring travels 2.8-4.2 N, for 2.75 N of noise)
-            (n_lo, s_lo, d_lo), (n_hi, s_hi, _) = apart
+        bound = _channel_bound(prob.lowband_channel_levels(r, gains, ir), sigma, hi)
+        if bound is not None:
             kind = "upper_bound"
-            if s_lo < sigma:
-                level, hi = s_lo, _chi2_sigma_interval(s_lo, d_lo)[1]
-            src += (f"; but its channels do not agree ({n_hi} alone gives {s_hi:.3g} N, {n_lo} {s_lo:.3g} N), "
-                    f"where white force noise gives every channel one level: the band holds an error of the "
-                    f"model's besides the noise, so the smallest level, {level:.3g} N, is an upper bound")
+            level, hi, text = bound
+            src += text
     # the method component (the fitted noise response is only as right as the fitted model),
     # added in quadrature to each side; an upper bound keeps its interval from zero
     m = FORCE_NOISE.method_half(level)
