@@ -313,7 +313,7 @@ def test_a_mode_that_raises_a_channels_residual_is_withdrawn(tmp_path):
 
 def test_residual_channels_that_disagree_hold_more_than_noise():
     """The rule that demotes a noise estimate to a bound (``_report._levels_apart``): channels
-    within 1.5x of each other, or apart by less than 4 standard errors, agree (the 22 independent
+    within 1.5x of each other, or apart by less than 4 standard errors, agree (the last vehicle card's 22
     runs whose estimate held: 1.25x at most); the whole car's heave at 197 N beside its moment at
     3.2 N does not, and the lowest channel is named for the bound."""
     from jaxdrift.diagnosis.vehicle._report import _levels_apart

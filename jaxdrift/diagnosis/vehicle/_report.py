@@ -104,8 +104,8 @@ def _sensor_noise(prob: "_Problem") -> bool:
 
 
 #: residual channels whose low-band levels differ by more than this ratio, and by more than
-#: LEVELS_APART_Z standard errors, hold more than white force noise (measured on 22 independent
-#: runs whose noise estimate held: their channels agree within 1.25)
+#: LEVELS_APART_Z standard errors, hold more than white force noise (measured on the 22 runs of the
+#: last vehicle card whose noise estimate held: their channels agree within 1.25x)
 LEVELS_APART_RATIO = 1.5
 LEVELS_APART_Z = 4.0
 
