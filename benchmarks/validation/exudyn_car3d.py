@@ -46,14 +46,14 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
     and right tracks, each ``road(x) -> (zeta, dzeta/dx)``) at ``fs`` on [0, t_end] (at every
     solver step if ``fine``). Returns ``t``; ``z3`` (the centreline's height at the centre of
     mass's station) and ``beta`` (pitch); ``roll``; per axle ``z1``/``z2`` and ``v1``/``v2`` (the
-    mean of its wheels' heights and rates), ``s1``/``s2`` (its mean spring travel), ``f1``/``f2``
-    (its tyre forces summed); and ``corners`` (each wheel's height, front left first)."""
+    mean of its wheels' heights and rates), ``s1``/``s2`` (its mean spring travel) and ``f1``/``f2``
+    (its tyre forces summed)."""
     import exudyn as exu
     from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
                                       MarkerNodePosition, MassPoint, NodePoint, NodePointGround, NodeRigidBodyRxyz,
                                       ObjectRigidBody)
 
-    a, b, g, w, yc = p["a"], p["b"], p["g"], shape["track"], shape["y_cg"]
+    a, b, g, yc = p["a"], p["b"], p["g"], shape["y_cg"]
     z3, roll0, beta, wz = equilibrium3d(p, shape)
     SC = exu.SystemContainer()
     mbs = SC.AddSystem()
@@ -62,43 +62,39 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
     body = mbs.AddObject(ObjectRigidBody(mass=p["m3"], inertia=[shape["Ixx"], p["I"], shape["Ixx"] + p["I"],
                                                                               0.0, 0.0, 0.0], nodeNumber=nb))
     bodies, corners = [body], []
-    for axle, x in enumerate((b, -a)):
-        m, kt, dt_ = (p[f"{q}{axle + 1}"] for q in "mkd")
-        k, d = p[f"k{axle + 3}"], p[f"d{axle + 3}"]
-        lag = 0.0 if axle == 0 else a + b
-        for side, y in enumerate((-0.5 * w, 0.5 * w)):  # left (y < 0: z down, x forward), then right
-            n = mbs.AddNode(NodePoint(referenceCoordinates=[x, y - yc, 0.0],
-                                      initialCoordinates=[0.0, 0.0, wz[2 * axle + side]]))
-            bodies.append(mbs.AddObject(MassPoint(mass=0.5 * m, nodeNumber=n)))
-            mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
-            mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[x, y - yc, 0.0]))
-            # the wheel first: chassis point - wheel = the spring travel
-            mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, 0.0, 0.5 * k],
-                                                      damping=[0.0, 0.0, 0.5 * d]))
-            mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=mbs.AddNode(NodePointGround(referenceCoordinates=[x, y - yc, 0.0]))))
-            road = roads[side]
+    m, k, d = per_corner(p, "m1", "m2"), per_corner(p, "k3", "k4"), per_corner(p, "d3", "d4")
+    kt, dt_ = per_corner(p, "k1", "k2"), per_corner(p, "d1", "d2")
+    for i, (x, y, _) in enumerate(corner_points(p, shape)):  # left (y < 0: z down, x forward), then right
+        axle, side = divmod(i, 2)
+        n = mbs.AddNode(NodePoint(referenceCoordinates=[x, y, 0.0], initialCoordinates=[0.0, 0.0, wz[i]]))
+        bodies.append(mbs.AddObject(MassPoint(mass=m[i], nodeNumber=n)))
+        mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
+        mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[x, y, 0.0]))
+        # the wheel first: chassis point - wheel = the spring travel
+        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, 0.0, k[i]],
+                                            damping=[0.0, 0.0, d[i]]))
+        ground = mbs.AddNode(NodePointGround(referenceCoordinates=[x, y, 0.0]))
+        mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=ground))
+        c = {"node": n, "x": x, "y": y, "axle": axle, "kt": float(kt[i]), "dt": float(dt_[i]), "road": roads[side],
+             "lag": 0.0 if axle == 0 else a + b}
 
-            def tyre(mbs_, t, item, u, du, k_, d_, off, kt=0.5 * kt, dt_=0.5 * dt_, lag=lag, road=road):
-                e, de = road(x0 + v * t - lag)
-                return [0.0, 0.0, kt * (u[2] - e) + dt_ * (du[2] - v * de)]
-            mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, 0.0, 0.5 * kt],
-                                                      damping=[0.0, 0.0, 0.5 * dt_], springForceUserFunction=tyre))
-            corners.append({"node": n, "x": x, "y": y - yc, "axle": axle, "side": side, "kt": 0.5 * kt, "dt": 0.5 * dt_,
-                            "road": road, "lag": lag})
+        def tyre(mbs_, t, item, u, du, k_, d_, off, kt=c["kt"], dt_=c["dt"], lag=c["lag"], road=c["road"]):
+            e, de = road(x0 + v * t - lag)
+            return [0.0, 0.0, kt * (u[2] - e) + dt_ * (du[2] - v * de)]
+        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, 0.0, kt[i]],
+                                            damping=[0.0, 0.0, dt_[i]], springForceUserFunction=tyre))
+        corners.append(c)
     for obj in bodies:
         mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, 0.0, g]))
-
-    def sensor(node, what):
-        return node_sensor(mbs, node, what)
-    sensors = [sensor(nb, "Position"), sensor(nb, "RotationMatrix")]
+    sensors = [node_sensor(mbs, nb, what) for what in ("Position", "RotationMatrix")]
     for c in corners:
-        sensors += [sensor(c["node"], "Coordinates"), sensor(c["node"], "Coordinates_t")]
+        sensors += [node_sensor(mbs, c["node"], what) for what in ("Coordinates", "Coordinates_t")]
     data = solve_stored(mbs, sensors, t_end, fs, substeps, fine)
     t = data[0][:, 0]
     pos, R = data[0][:, 1:4], data[1][:, 1:10].reshape(-1, 3, 3)  # body -> global, row by row
     centre = pos + R @ np.array([0.0, -yc, 0.0])  # the centreline below (above) the centre of mass
     out = {"t": t, "z3": centre[:, 2], "beta": np.arcsin(-R[:, 2, 0]),
-           "roll": np.arctan2(R[:, 2, 1], R[:, 2, 2]), "corners": []}
+           "roll": np.arctan2(R[:, 2, 1], R[:, 2, 2])}
     acc = {k: np.zeros_like(t) for k in ("z1", "z2", "v1", "v2", "s1", "s2", "f1", "f2")}
     for i, c in enumerate(corners):
         zw = data[2 + 2 * i][:, 3]  # the node's displacement in z (its reference height is 0)
@@ -110,7 +106,6 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
         acc["v" + j] += 0.5 * vw
         acc["s" + j] += 0.5 * (top - zw)
         acc["f" + j] += c["kt"] * (zw - e) + c["dt"] * (vw - v * de)
-        out["corners"].append(zw)
     return {**out, **acc}
 
 
@@ -121,6 +116,12 @@ def corner_points(p: dict, shape: dict) -> np.ndarray:
     return np.array([[x, y - yc, 0.0] for x in (p["b"], -p["a"]) for y in (-0.5 * w, 0.5 * w)])
 
 
+def per_corner(p: dict, front: str, rear: str) -> np.ndarray:
+    """Each corner's half of its axle's half-car value (``p[front]``, ``p[rear]``), in
+    ``corner_points``' order."""
+    return np.repeat([0.5 * p[front], 0.5 * p[rear]], 2)
+
+
 def equilibrium3d(p: dict, shape: dict):
     """The car's static pose on level road, exact in the angles (Exudyn's ``Rxyz`` rotation
     ``Rx(roll) Ry(pitch)``): the centre of mass's height, roll, pitch and the four wheels' heights.
@@ -129,9 +130,7 @@ def equilibrium3d(p: dict, shape: dict):
     from scipy.optimize import fsolve
 
     g, r = p["g"], corner_points(p, shape)
-    k = np.repeat([0.5 * p["k3"], 0.5 * p["k4"]], 2)
-    kt = np.repeat([0.5 * p["k1"], 0.5 * p["k2"]], 2)
-    mw = np.repeat([0.5 * p["m1"], 0.5 * p["m2"]], 2)
+    k, kt, mw = per_corner(p, "k3", "k4"), per_corner(p, "k1", "k2"), per_corner(p, "m1", "m2")
 
     def residual(q):
         zc, phi, th, *zw = q
@@ -153,14 +152,14 @@ def roll_mode(p: dict, shape: dict) -> dict:
     the centre of mass's height, roll, pitch and the four wheels' heights): ``frequency_hz`` and
     ``roll_share`` of the mode with the largest share of its kinetic energy in roll."""
     r = corner_points(p, shape)
-    M = np.diag([p["m3"], shape["Ixx"], p["I"]] + [0.5 * p["m1"]] * 2 + [0.5 * p["m2"]] * 2)
+    M = np.diag([p["m3"], shape["Ixx"], p["I"], *per_corner(p, "m1", "m2")])
     K = np.zeros((7, 7))
-    for i, ((x, y, _), k, kt) in enumerate(zip(r, np.repeat([p["k3"], p["k4"]], 2), np.repeat([p["k1"], p["k2"]], 2))):
+    for i, ((x, y, _), k, kt) in enumerate(zip(r, per_corner(p, "k3", "k4"), per_corner(p, "k1", "k2"))):
         j = np.zeros(7)
         j[:3] = 1.0, y, -x  # the chassis point's height: z + y roll - x pitch
         j[3 + i] = -1.0
-        K += 0.5 * k * np.outer(j, j)
-        K[3 + i, 3 + i] += 0.5 * kt
+        K += k * np.outer(j, j)
+        K[3 + i, 3 + i] += kt
     w2, V = np.linalg.eig(np.linalg.solve(M, K))
     share = [M[1, 1] * V[1, i].real ** 2 / (V[:, i].real @ M @ V[:, i].real) for i in range(7)]
     i = int(np.argmax(share))
