@@ -234,7 +234,7 @@ class _Problem:
         sigma, _, dof = self.lowband_levels(r, gains, ir)
         return sigma, dof
 
-    def _lowband_parts(self, r: np.ndarray, gains: dict | None, ir: dict | None) -> dict:
+    def lowband_parts(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None) -> dict:
         """Per residual channel the force noise is measured on (``_lowband_channels``): its low
         band (``lowband_levels``), the sensor noise's power there, its low-passed noise response
         per force channel and their summed energy (the power per sample unit noise gives it)."""
@@ -265,23 +265,23 @@ class _Problem:
             out[nm] = (xl, motion_pw, hl, unit)
         return out
 
-    def lowband_channel_levels(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None) -> dict:
-        """Per channel of ``lowband_levels``, the level its low band gives alone (sensor noise
+    @staticmethod
+    def lowband_channel_levels(parts: dict) -> dict:
+        """Per channel of ``lowband_parts``, the level its low band gives alone (sensor noise
         taken out) and that level's degrees of freedom: white force noise gives every channel
         one level, an error the model makes in one equation does not (a roll coupled into the
         heave the model is compared on moves the vertical force, not the moment)."""
         out = {}
-        for nm, (xl, motion_pw, hl, unit) in self._lowband_parts(r, gains, ir).items():
+        for nm, (xl, motion_pw, hl, unit) in parts.items():
             den = unit * len(xl)
             if den <= 0:
                 continue
-            ccf = sum(scipy.signal.correlate(h, h, mode="full", method="fft") for h in hl.values())
-            dof = 2.0 * den * den / max(2.0 * len(xl) * float(np.sum(ccf ** 2)), 1e-300)
+            dof = 2.0 * den * den / max(2.0 * len(xl) * _ccf_energy(hl, hl), 1e-300)
             out[nm] = (math.sqrt(max(float(np.sum(xl * xl)) - motion_pw * len(xl), 0.0) / den), dof)
         return out
 
-    def lowband_levels(self, r: np.ndarray, gains: dict | None = None,
-                       ir: dict | None = None) -> tuple[float, float, float]:
+    def lowband_levels(self, r: np.ndarray, gains: dict | None = None, ir: dict | None = None,
+                       parts: dict | None = None) -> tuple[float, float, float]:
         """Force-noise level from the residual's low band with the sensor noise found on the
         measured motion taken out, the same level with it left in (an upper bound where that
         share is uncertain), and their effective degrees of freedom (the same for both).
@@ -295,13 +295,12 @@ class _Problem:
         ``gains``: per force channel, the factor the correction puts on the measured samples
         (1 / scale): noise on the measured samples reaches the residual multiplied by it.
         ``ir``: impulse responses of the fitted parameters (default: the model's); the residual
-        keeps the model's row weighting either way.
+        keeps the model's row weighting either way. ``parts``: ``lowband_parts(r, gains, ir)``
+        where the caller has it already.
         """
+        parts = self.lowband_parts(r, gains, ir) if parts is None else parts
         num = den = motion = 0.0
-        hls, lens = {}, {}
-        for nm, (xl, motion_pw, hl, unit) in self._lowband_parts(r, gains, ir).items():
-            hls.update({(nm, ch): h for ch, h in hl.items()})
-            lens[nm] = len(xl)
+        for xl, motion_pw, hl, unit in parts.values():
             num += float(np.sum(xl * xl))
             motion += motion_pw * len(xl)
             den += unit * len(xl)
@@ -311,12 +310,9 @@ class _Problem:
         # of freedom by about 1.5 with pitch and both spring travels). The sum of c_ab^2 over all
         # lags does not depend on the channels' relative alignment.
         var_num = 0.0
-        for a in lens:
-            for b in lens:
-                ccf = 0.0
-                for ch in FORCE_CHANNELS:
-                    ccf = ccf + scipy.signal.correlate(hls[(a, ch)], hls[(b, ch)], mode="full", method="fft")
-                var_num += 2.0 * math.sqrt(lens[a] * lens[b]) * float(np.sum(ccf ** 2))
+        for xa, _, ha, _ in parts.values():
+            for xb, _, hb, _ in parts.values():
+                var_num += 2.0 * math.sqrt(len(xa) * len(xb)) * _ccf_energy(ha, hb)
         if den <= 0:
             return 0.0, 0.0, 1.0
         dof = 2.0 * den * den / max(var_num, 1e-300)
@@ -372,6 +368,16 @@ def _gauss_newton(prob: _Problem, causes, theta0, iters=6) -> Fit:
     if causes:
         X = prob.jacobian(causes, theta)
     return Fit(list(causes), theta, r, res, float(r @ r), X)
+
+
+def _ccf_energy(ha: dict, hb: dict) -> float:
+    """The sum over all lags of the squared cross-covariance of two residual channels under unit
+    white force noise (their noise responses ``ha``, ``hb`` per force channel): what their squared
+    low bands' covariance is made of (``_Problem.lowband_levels``)."""
+    ccf = 0.0
+    for ch in FORCE_CHANNELS:
+        ccf = ccf + scipy.signal.correlate(ha[ch], hb[ch], mode="full", method="fft")
+    return float(np.sum(ccf ** 2))
 
 
 def choose_bands(pipe: ResidualPipeline, model: dict, names, ir: dict, motion_noise: dict, shapes: dict,

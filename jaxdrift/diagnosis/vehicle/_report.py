@@ -170,8 +170,9 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
     kind = "estimate"  # or "upper_bound": a level the noise cannot exceed, interval from 0
     hf, hf_lo, hf_hi = _force_hf_noise(run)
     if dynamic:
-        gains, ir = {ch: corr_ext[ch].gain for ch in FORCE_CHANNELS}, prob.impulse_responses(p_ext)[0]
-        sigma, with_motion, dof = prob.lowband_levels(r, gains, ir)
+        parts = prob.lowband_parts(r, {ch: corr_ext[ch].gain for ch in FORCE_CHANNELS},
+                                   prob.impulse_responses(p_ext)[0])
+        sigma, with_motion, dof = prob.lowband_levels(r, parts=parts)
         lo, hi = _chi2_sigma_interval(sigma, dof)
         found = sigma > NOISE_MIN_N  # decided on the low band, before a smaller bound replaces it
         fc = lowband_cutoff(1.0 / run.dt)
@@ -268,7 +269,7 @@ def noise_level(prob: "_Problem", sel, corr_ext: dict, p_ext: dict, r: np.ndarra
                     f"{with_motion:.3g} N, the upper end of the interval")
     level = sigma  # the level the finding reports
     if dynamic and from_lowband and kind == "estimate" and found:  # (a level too small to report is a bound already)
-        bound = _channel_bound(prob.lowband_channel_levels(r, gains, ir), sigma, hi)
+        bound = _channel_bound(prob.lowband_channel_levels(parts), sigma, hi)
         if bound is not None:
             kind = "upper_bound"
             level, hi, text = bound
