@@ -19,6 +19,8 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   chassis in two parts on a hinge (a first bending mode of 15-30 Hz, ``gen_exudyn.design_bending``);
   ``vehicle-car3d/indep``: a car in three dimensions on left and right tracks that differ, measured
   as a half-car (``gen_exudyn.design_car3d``; its truth the sensor and parameter effects alone);
+  ``vehicle-struts/indep``: inclined struts whose forces turn with pitch and travel, the model the
+  struts' half-car equivalent (``gen_exudyn.design_struts``; the same truth);
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep``, ``attitude-wide/indep`` and ``attitude-wide2/indep``:
@@ -123,6 +125,7 @@ WORLDS = [
     World("vehicle-bending/indep", "vehicle", "exudyn", 20261221, 30, 0, {"design": "bending"}),
     # a car in three dimensions on left and right tracks that differ, measured as a half-car (issue #48)
     World("vehicle-car3d/indep", "vehicle", "exudyn", 20261222, 30, 0, {"design": "car3d"}),
+    World("vehicle-struts/indep", "vehicle", "exudyn", 20261223, 30, 0, {"design": "struts"}),
     World("attitude-standard/indep", "attitude", "indep_attitude", 20261211, 16, 2, {"design": "standard"}),
     World("attitude-wide/indep", "attitude", "indep_attitude", 20261212, 28, 4, {"design": "wide"}),
     # a second draw of the wide design, added after the first was tuned on (never tuned on itself)
@@ -161,7 +164,8 @@ def cases(world: World) -> list[dict]:
     if b == "exudyn":
         from benchmarks.validation import gen_exudyn as ge
 
-        designs = {"modes": ge.design_modes, "bending": ge.design_bending, "car3d": ge.design_car3d}
+        designs = {"modes": ge.design_modes, "bending": ge.design_bending, "car3d": ge.design_car3d,
+                   "struts": ge.design_struts}
         return designs.get(o.get("design"), ge.design)(world.n, world.seed)
     if b == "indep_clip":
         from benchmarks.validation import gen_vehicle as gv
@@ -261,14 +265,17 @@ def run_case(world_name: str, case: dict) -> dict:
             c3 = full.get("car3d")
             if c3 and c3["y_cg"]:  # roll, coupled in by the off-centre centre of mass (not asked for)
                 mode = [{"cause": "unmodelled_mode", "value": c3["roll_hz"], "optional": True}]
+            st = full.get("struts")
             body = (f"3D car, track {c3['track']:.2f} m, centre of mass {100 * c3['y_cg']:+.1f} cm to the side, "
-                    f"tracks correlated {c3['coherence']:.2f}") if c3 else "rigid car" if e is None else (
+                    f"tracks correlated {c3['coherence']:.2f}") if c3 else (
+                "struts at {:+.0f}/{:+.0f} deg, {:.2f}/{:.2f} m long, wheels {:.2f} m below the centre of mass".format(
+                    *(math.degrees(x) for x in st["theta"]), *st["L"], st["H"])) if st else "rigid car" if e is None else (
                 f"bending chassis, front part {100 * e['share']:.0f} %, hinge {e['x_hinge']:.2f} m ahead, "
                 f"{e['frequency_hz']:.1f} Hz (free {e['free_hz']:.1f} Hz, damping ratio {e['damping_ratio']:.2f})"
                 if e.get("kind") == "bending" else
                 f"{e.get('kind', 'engine')} {100 * e['mass'] / full['car']['m3']:.0f} % on {e['frequency_hz']:.1f} Hz "
                 f"mounts {e['x']:.2f} m ahead")
-            rec.update(stratum=case["stratum"], truth=mode + full["effects"], model_form=e or c3,
+            rec.update(stratum=case["stratum"], truth=mode + full["effects"], model_form=e or c3 or st,
                        where=(f"{full['vehicle_kind']} {body}; road {full['road_class']} "
                               f"{full['road_interp']} {full['speed']:.0f} m/s {full['fs']:g} Hz {full['duration']:g} s "
                               f"{full['channel_set']}"))

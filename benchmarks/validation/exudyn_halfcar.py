@@ -146,10 +146,12 @@ def node_sensor(mbs, node: int, what: str) -> int:
                                     outputVariableType=getattr(exu.OutputVariableType, what)))
 
 
-def solve_stored(mbs, sensors: list, t_end: float, fs: float, substeps: int, fine: bool) -> list:
+def solve_stored(mbs, sensors: list, t_end: float, fs: float, substeps: int, fine: bool,
+                 newton_atol: float | None = None) -> list:
     """Assemble ``mbs``, integrate it by the generalized-alpha solver (spectral radius 1: no
     numerical damping) at ``substeps`` fixed steps per sample of ``fs`` to ``t_end``, and return
-    each sensor's stored data (at every step if ``fine``, else at ``fs``)."""
+    each sensor's stored data (at every step if ``fine``, else at ``fs``). ``newton_atol``: Newton's
+    absolute tolerance [N] where Exudyn's default is under the round-off of large internal forces."""
     import exudyn as exu
 
     mbs.Assemble()
@@ -159,6 +161,8 @@ def solve_stored(mbs, sensors: list, t_end: float, fs: float, substeps: int, fin
     s.timeIntegration.endTime = n_out / fs
     s.timeIntegration.generalizedAlpha.spectralRadius = 1.0
     s.timeIntegration.verboseMode = 0
+    if newton_atol is not None:
+        s.timeIntegration.newton.absoluteTolerance = newton_atol
     s.solution.file.write = False
     s.solution.sensors.writePeriod = 1.0 / fs / (substeps if fine else 1)
     exu.SolveDynamic(mbs, s)

@@ -27,6 +27,13 @@ holds the centre of mass, alone, with a sensor effect or with a chassis spring o
 (``exudyn_car3d.py``) on left and right tracks that differ (``CAR3D``), measured as a half-car, the
 model given its half-car; the centre of mass up to 4 cm to the side couples its roll into heave and
 pitch. Its strata are the bending world's.
+
+``design_struts``: the inclined-strut world (scorecard ``vehicle-struts/indep``): each suspension a
+strut (``exudyn_struts.py``) leaning 6-20 deg forward or back, the wheels on control arms 0.1-0.3 m
+below the centre of mass, the model given the struts' half-car equivalent at the static pose; what
+remains (the struts' forces turning with pitch and travel, the preload's side force, the wheels
+moving with the body) is the model-form error, with no cause of its own. Strata as the bending
+world's.
 """
 
 from __future__ import annotations
@@ -39,6 +46,7 @@ from scipy.interpolate import CubicSpline
 from benchmarks.validation import gen_vehicle as gv
 from benchmarks.validation.exudyn_car3d import roll_mode, simulate_car3d
 from benchmarks.validation.exudyn_halfcar import bending_modes, hinge, rigid_equivalent, simulate_exudyn
+from benchmarks.validation.exudyn_struts import simulate_struts, strut_pose
 
 SUBSTEPS = 10
 
@@ -106,6 +114,13 @@ def design_car3d(n: int, seed: int) -> list[dict]:
     return _thirds(n, [seed, 0xE43], "car3d")
 
 
+def design_struts(n: int, seed: int) -> list[dict]:
+    """``n`` cases of the inclined-strut world (``STRUTS``: the model given the struts' half-car
+    equivalent): a third each alone with force noise, with one sensor effect, or with an error of a
+    strut's spring or damper (the truth its wheel rate's or damping's ratio)."""
+    return _thirds(n, [seed, 0xE44], "struts")
+
+
 def _thirds(n: int, salt: list, design: str) -> list[dict]:
     rng = np.random.default_rng(salt)
     kinds = ("noise", "single", "param")
@@ -124,6 +139,17 @@ def _thirds(n: int, salt: list, design: str) -> list[dict]:
 #: centreline [m] (either side), roll inertia as a share of ``m3 (track / 2) ** 2``, and the
 #: correlation of the right track's profile with the left's (0: independent tracks)
 CAR3D = {"track": (1.4, 1.7), "y_cg": (0.0, 0.04), "roll_share": (0.4, 0.8), "coherence": (0.0, 0.9)}
+
+
+#: the inclined struts (``design_struts``): each strut's angle from the vertical [rad] (either way,
+#: front and rear drawn apart), its length [m], and the wheels' depth below the centre of mass [m]
+STRUTS = {"theta": (0.1, 0.35), "L": (0.35, 0.6), "H": (0.1, 0.3)}
+
+
+def _struts(rng, car: dict) -> dict:
+    S = STRUTS
+    return {"kind": "struts", "theta": [float(rng.choice([-1.0, 1.0]) * rng.uniform(*S["theta"])) for _ in range(2)],
+            "L": [float(rng.uniform(*S["L"])) for _ in range(2)], "H": float(rng.uniform(*S["H"]))}
 
 
 def _car3d(rng, car: dict) -> dict:
@@ -167,13 +193,15 @@ def make_case(case: dict) -> dict:
     vkind = str(rng.choice(sorted(gv.VEHICLES)))
     car = {k: float(v * rng.uniform(0.9, 1.1)) for k, v in gv.VEHICLES[vkind].items()}
     car["g"] = gv.G
-    bending = car3d = None
+    bending = car3d = struts = None
     if case.get("design") == "modes":
         engine = _mount(rng, car, case["mount"])
     elif case.get("design") == "bending":
         engine, bending = None, _bending(rng, car)
     elif case.get("design") == "car3d":
         engine, car3d = None, _car3d(rng, car)
+    elif case.get("design") == "struts":
+        engine, struts = None, _struts(rng, car)
     else:  # the first world's draws, unchanged
         me = float(rng.uniform(0.08, 0.12) * car["m3"])
         f_mount = float(rng.uniform(8.0, 15.0))
@@ -187,14 +215,18 @@ def make_case(case: dict) -> dict:
     dur = float(round(rng.uniform(10.0, 20.0), 1))
     chans = ["beta", "z3"] + (["s1", "s2"] if rng.random() < 0.5 else [])
     model = dict(car) if engine is None else rigid_equivalent(car, engine)
+    if struts:
+        model = strut_pose(car, struts)["equivalent"]
     effects = [gv.draw_effect(rng, *w, model, duration=dur) for w in case["what"]]
     true_car = dict(car)
     for e in effects:  # a chassis spring or damper the model has wrong: the car is simulated with the true one
         if e["cause"] == "parameter_error":
             true_car[e["parameter"]] = car[e["parameter"]] * e["value"]
+            if struts:  # the truth: the ratio of the strut's wheel rate (damping) to the model's
+                e["value"] = strut_pose(true_car, struts)["equivalent"][e["parameter"]] / model[e["parameter"]]
     effects.append({"cause": "force_noise", "value": float(math.exp(rng.uniform(math.log(0.5), math.log(3.0))))})
     return {**case, "vehicle_kind": vkind, "car": true_car, "engine": engine, "bending": bending, "car3d": car3d,
-            "model": model,
+            "struts": struts, "model": model,
             "road_class": cls,
             "road_interp": str(rng.choice(["spline7", "linear"])), "speed": speed, "fs": fs, "duration": dur,
             "channels": chans, "channel_set": "_".join(chans), "precision": int(rng.integers(7, 10)), "t0": 0.0,
@@ -212,6 +244,8 @@ def generate(case: dict) -> dict:
     if case.get("car3d"):
         fine = _car3d_signals(case, road, gv.FilteredRoad(rng, case["road_class"], x0 + v * (T + 0.2) + 1.0,
                                                           interp=case["road_interp"]), x0)
+    elif case.get("struts"):
+        fine = simulate_struts(case["car"], road, v, x0, T, fs, case["struts"], SUBSTEPS, fine=True)
     else:
         fine = _halfcar_signals(case, road, x0)
     tf = fine["t"]
