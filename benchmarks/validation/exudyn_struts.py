@@ -52,15 +52,17 @@ def strut_pose(p: dict, shape: dict) -> dict:
     and its half-car equivalent. ``shape``: ``theta`` (each strut's angle from the vertical, front
     and rear, positive: its top ahead of the wheel), ``L`` (strut lengths), ``H`` (the wheels below
     the centre of mass). The pose is the equivalent half-car's static one (``gv.equilibrium``), and
-    every preload (strut lengths, control arms, tyres) is set to hold it exactly. Returns
+    every preload (strut lengths, control arms, tyres) is set to hold it exactly; the equivalent's
+    ``a`` and ``b`` are the ones the axles' static loads give (what weighing the car tells a user:
+    the struts' lines of action move them by millimetres). Returns
     ``equivalent`` (the half-car parameters) and the pose's parts."""
     th, Ls, H, g = shape["theta"], shape["L"], shape["H"], p["g"]
     ks = [p[k] / math.cos(t) ** 2 for k, t in zip(("k3", "k4"), th)]
     ds = [p[k] / math.cos(t) ** 2 for k, t in zip(("d3", "d4"), th)]
     F = [p["m3"] * g * p["a"] / (p["a"] + p["b"]) / math.cos(th[0]), p["m3"] * g * p["b"] / (p["a"] + p["b"]) / math.cos(th[1])]
-    th_eff = list(th)
+    th_eff, lever = list(th), (p["a"], p["b"])
     for _ in range(20):  # a fixed point: the rates hold F and the struts' angles at the pose, F and the angles the pose
-        eq = {**p}
+        eq = {**p, "a": lever[0], "b": lever[1]}
         for i, (k, d) in enumerate((("k3", "d3"), ("k4", "d4"))):
             c2 = math.cos(th_eff[i]) ** 2
             eq[k] = ks[i] * c2 - F[i] / Ls[i] * (1.0 - c2)
@@ -78,9 +80,12 @@ def strut_pose(p: dict, shape: dict) -> dict:
         cross = [T[i][0] * u[i][1] - T[i][1] * u[i][0] + W[i][1] * u[i][0] for i in range(2)]
         F_new = [float(f) for f in np.linalg.solve([[u[0][1], u[1][1]], cross], [-p["m3"] * g, 0.0])]
         th_new = [math.atan2(u[i][0], -u[i][1]) for i in range(2)]
+        v = [-F_new[i] * u[i][1] for i in range(2)]  # the axles' static loads: the corner weights give a and b
+        lever_new = ((p["a"] + p["b"]) * v[0] / (v[0] + v[1]), (p["a"] + p["b"]) * v[1] / (v[0] + v[1]))
         done = (max(abs(F_new[i] - F[i]) for i in range(2)) < 1e-12 * p["m3"] * g
-                and max(abs(th_new[i] - th_eff[i]) for i in range(2)) < 1e-14)
-        F, th_eff = F_new, th_new
+                and max(abs(th_new[i] - th_eff[i]) for i in range(2)) < 1e-14
+                and max(abs(lever_new[i] - lever[i]) for i in range(2)) < 1e-14)
+        F, th_eff, lever = F_new, th_new, lever_new
         if done:
             break
     else:
@@ -101,7 +106,8 @@ def simulate_struts(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     t = data[0][:, 0]
     out = {"t": t, "z3": data[0][:, 2], "beta": -data[0][:, 3]}
     sb = np.sin(out["beta"])
-    for i, (w, x) in enumerate(zip(wheels, (p["b"], -p["a"]))):
+    eq = strut_pose(p, shape)["equivalent"]
+    for i, (w, x) in enumerate(zip(wheels, (eq["b"], -eq["a"]))):  # the travel as the model defines it
         j = str(i + 1)
         zw, vw = data[1 + 2 * i][:, 2], data[2 + 2 * i][:, 2]
         e, de = np.array([road(x0 + v * ti - w["lag"]) for ti in t]).T
@@ -159,7 +165,7 @@ def _build(p: dict, road, v: float, x0: float, shape: dict):
         ground = mbs.AddNode(NodePointGround(referenceCoordinates=[X, H, 0.0]))
         mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=ground))
         lag = 0.0 if i == 0 else L
-        off = P["tyre"][i] - kt * zi  # the tyre's force at rest minus its spring's (second order)
+        off = P["tyre"][i] - kt * zi  # the tyre's force at rest minus its spring's (round-off: a, b are the corner weights')
 
         def tyre(mbs_, t, item, u_, du, k_, d_, o_, kt=kt, dt_=dt_, lag=lag, off=off):
             e, de = road(x0 + v * t - lag)
