@@ -36,7 +36,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(os.path.dirname(HERE)))
 
 from benchmarks.validation import gen_vehicle as gv  # noqa: E402
-from benchmarks.validation.exudyn_halfcar import node_sensor, solve_stored  # noqa: E402
+from benchmarks.validation.exudyn_halfcar import add_gravity, add_tyre, node_sensor, solve_stored  # noqa: E402
 
 
 def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float, shape: dict,
@@ -49,9 +49,8 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
     mean of its wheels' heights and rates), ``s1``/``s2`` (its mean spring travel) and ``f1``/``f2``
     (its tyre forces summed)."""
     import exudyn as exu
-    from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
-                                      MarkerNodePosition, MassPoint, NodePoint, NodePointGround, NodeRigidBodyRxyz,
-                                      ObjectRigidBody)
+    from exudyn.itemInterface import (CartesianSpringDamper, MarkerBodyPosition, MarkerNodePosition, MassPoint,
+                                      NodePoint, NodeRigidBodyRxyz, ObjectRigidBody)
 
     a, b, g, yc = p["a"], p["b"], p["g"], shape["y_cg"]
     z3, roll0, beta, wz = equilibrium3d(p, shape)
@@ -73,19 +72,11 @@ def simulate_car3d(p: dict, roads, v: float, x0: float, t_end: float, fs: float,
         # the wheel first: chassis point - wheel = the spring travel
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, 0.0, k[i]],
                                             damping=[0.0, 0.0, d[i]]))
-        ground = mbs.AddNode(NodePointGround(referenceCoordinates=[x, y, 0.0]))
-        mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=ground))
         c = {"node": n, "x": x, "y": y, "axle": axle, "kt": float(kt[i]), "dt": float(dt_[i]), "road": roads[side],
              "lag": 0.0 if axle == 0 else a + b}
-
-        def tyre(mbs_, t, item, u, du, k_, d_, off, kt=c["kt"], dt_=c["dt"], lag=c["lag"], road=c["road"]):
-            e, de = road(x0 + v * t - lag)
-            return [0.0, 0.0, kt * (u[2] - e) + dt_ * (du[2] - v * de)]
-        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, 0.0, kt[i]],
-                                            damping=[0.0, 0.0, dt_[i]], springForceUserFunction=tyre))
+        add_tyre(mbs, mw, [x, y, 0.0], 2, c["kt"], c["dt"], c["road"], x0, v, c["lag"])
         corners.append(c)
-    for obj in bodies:
-        mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, 0.0, g]))
+    add_gravity(mbs, bodies, [0.0, 0.0, g])
     sensors = [node_sensor(mbs, nb, what) for what in ("Position", "RotationMatrix")]
     for c in corners:
         sensors += [node_sensor(mbs, c["node"], what) for what in ("Coordinates", "Coordinates_t")]

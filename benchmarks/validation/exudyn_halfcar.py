@@ -47,9 +47,8 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     of the point the car's centre of mass is at and the rotation of the part that holds it (where a
     pitch sensor sits), and ``y1``/``y2`` the chassis points above the wheels."""
     import exudyn as exu
-    from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
-                                      MarkerNodePosition, MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
-                                      ObjectRigidBody2D)
+    from exudyn.itemInterface import (CartesianSpringDamper, MarkerBodyPosition, MarkerNodePosition, MassPoint2D,
+                                      NodePoint2D, NodeRigidBody2D, ObjectRigidBody2D)
     from exudyn.itemInterface import CoordinateSpringDamper, MarkerNodeCoordinate, RevoluteJoint2D
 
     a, b, g = p["a"], p["b"], p["g"]
@@ -93,8 +92,7 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
             markerNumbers=[mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[engine["x"], 0.0, 0.0])),
                            mbs.AddMarker(MarkerNodePosition(nodeNumber=ne))],
             stiffness=[0.0, engine["k"], 0.0], damping=[0.0, engine["d"], 0.0]))
-    for obj in bodies:
-        mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, g, 0.0]))
+    add_gravity(mbs, bodies, [0.0, g, 0.0])
     def sensor(node, what):
         return node_sensor(mbs, node, what)
     sensors = [sensor(q["node"], "Coordinates") for q in parts]
@@ -107,16 +105,8 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
         k, d = (p["k3"], p["d3"]) if i == 0 else (p["k4"], p["d4"])
         # the wheel first: displacement chassis point - wheel = the paper's spring travel s_i
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[0.0, k, 0.0], damping=[0.0, d, 0.0]))
-        ground = mbs.AddNode(NodePointGround(referenceCoordinates=[x, 0.0, 0.0]))
-        mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=ground))
         kt, dt_ = (p["k1"], p["d1"]) if i == 0 else (p["k2"], p["d2"])
-        lag = 0.0 if i == 0 else a + b
-
-        def tyre(mbs_, t, item, u, du, k_, d_, off, kt=kt, dt_=dt_, lag=lag):
-            e, de = road(x0 + v * t - lag)
-            return [0.0, kt * (u[1] - e) + dt_ * (du[1] - v * de), 0.0]
-        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, kt, 0.0], damping=[0.0, dt_, 0.0],
-                                            springForceUserFunction=tyre))
+        add_tyre(mbs, mw, [x, 0.0, 0.0], 1, kt, dt_, road, x0, v, 0.0 if i == 0 else a + b)
         sensors += [sensor(n, "Coordinates"), sensor(n, "Coordinates_t")]
     data = solve_stored(mbs, sensors, t_end, fs, substeps, fine)
     ch = data[0]
@@ -135,6 +125,33 @@ def simulate_exudyn(p: dict, road, v: float, x0: float, t_end: float, fs: float,
         data = data[1:]
     out.update(z1=data[1][:, 2], v1=data[2][:, 2], z2=data[3][:, 2], v2=data[4][:, 2])
     return out
+
+
+def add_tyre(mbs, wheel_marker: int, at: list, axis: int, kt: float, dt: float, road, x0: float, v: float,
+             lag: float, off: float = 0.0) -> None:
+    """A tyre: a spring-damper along ``axis`` from a ground point ``at`` to the wheel, its force
+    ``kt (u - e) + dt (du - v de/dx) + off`` with ``(e, de/dx) = road(x0 + v t - lag)`` under it."""
+    from exudyn.itemInterface import CartesianSpringDamper, MarkerNodePosition, NodePointGround
+
+    ground = mbs.AddMarker(MarkerNodePosition(nodeNumber=mbs.AddNode(NodePointGround(referenceCoordinates=at))))
+    k, d = [0.0, 0.0, 0.0], [0.0, 0.0, 0.0]
+    k[axis], d[axis] = kt, dt
+
+    def tyre(mbs_, t, item, u, du, k_, d_, o_):
+        e, de = road(x0 + v * t - lag)
+        f = [0.0, 0.0, 0.0]
+        f[axis] = kt * (u[axis] - e) + dt * (du[axis] - v * de) + off
+        return f
+    mbs.AddObject(CartesianSpringDamper(markerNumbers=[ground, wheel_marker], stiffness=k, damping=d,
+                                        springForceUserFunction=tyre))
+
+
+def add_gravity(mbs, bodies: list, g_vector: list) -> None:
+    """Gravity ``g_vector`` on every body of ``bodies`` (a mass-proportional load)."""
+    from exudyn.itemInterface import LoadMassProportional, MarkerBodyMass
+
+    for obj in bodies:
+        mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=g_vector))
 
 
 def node_sensor(mbs, node: int, what: str) -> int:

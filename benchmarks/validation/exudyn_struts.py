@@ -33,7 +33,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(os.path.dirname(HERE)))
 
 from benchmarks.validation import gen_vehicle as gv  # noqa: E402
-from benchmarks.validation.exudyn_halfcar import node_sensor, solve_stored  # noqa: E402
+from benchmarks.validation.exudyn_halfcar import add_gravity, add_tyre, node_sensor, solve_stored  # noqa: E402
 
 #: the control arm that holds each wheel in x: stiffness [N/m] and damping ratio on the wheel's mass
 ARM_K, ARM_ZETA = 2.0e7, 0.3
@@ -133,9 +133,8 @@ def linear_stiffness(p: dict, shape: dict) -> np.ndarray:
 def _build(p: dict, road, v: float, x0: float, shape: dict):
     """The strut car's Exudyn system at its static pose: ``(mbs, sensors, wheels)``."""
     import exudyn as exu
-    from exudyn.itemInterface import (CartesianSpringDamper, LoadMassProportional, MarkerBodyMass, MarkerBodyPosition,
-                                      MarkerNodePosition, MassPoint2D, NodePoint2D, NodePointGround, NodeRigidBody2D,
-                                      ObjectRigidBody2D, SpringDamper)
+    from exudyn.itemInterface import (CartesianSpringDamper, MarkerBodyPosition, MarkerNodePosition, MassPoint2D,
+                                      NodePoint2D, NodeRigidBody2D, ObjectRigidBody2D, SpringDamper)
 
     P = strut_pose(p, shape)
     z1, z2, z3, beta = P["z"]
@@ -162,19 +161,11 @@ def _build(p: dict, road, v: float, x0: float, shape: dict):
         mbs.AddObject(CartesianSpringDamper(markerNumbers=[mw, mc], stiffness=[ARM_K, 0.0, 0.0],
                                             damping=[2 * ARM_ZETA * math.sqrt(ARM_K * m), 0.0, 0.0],
                                             offset=[-arm / ARM_K, 0.0, 0.0]))
-        ground = mbs.AddNode(NodePointGround(referenceCoordinates=[X, H, 0.0]))
-        mg = mbs.AddMarker(MarkerNodePosition(nodeNumber=ground))
         lag = 0.0 if i == 0 else L
         off = P["tyre"][i] - kt * zi  # the tyre's force at rest minus its spring's (round-off: a, b are the corner weights')
-
-        def tyre(mbs_, t, item, u_, du, k_, d_, o_, kt=kt, dt_=dt_, lag=lag, off=off):
-            e, de = road(x0 + v * t - lag)
-            return [0.0, kt * (u_[1] - e) + dt_ * (du[1] - v * de) + off, 0.0]
-        mbs.AddObject(CartesianSpringDamper(markerNumbers=[mg, mw], stiffness=[0.0, kt, 0.0], damping=[0.0, dt_, 0.0],
-                                            springForceUserFunction=tyre))
+        add_tyre(mbs, mw, [X, H, 0.0], 1, kt, dt_, road, x0, v, lag, off)
         wheels.append({"node": n, "kt": kt, "dt": dt_, "lag": lag, "off": off})
-    for obj in bodies:
-        mbs.AddLoad(LoadMassProportional(markerNumber=mbs.AddMarker(MarkerBodyMass(bodyNumber=obj)), loadVector=[0.0, g, 0.0]))
+    add_gravity(mbs, bodies, [0.0, g, 0.0])
     sensors = [node_sensor(mbs, nb, "Coordinates")]
     for w in wheels:
         sensors += [node_sensor(mbs, w["node"], "Coordinates"), node_sensor(mbs, w["node"], "Coordinates_t")]
