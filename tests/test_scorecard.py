@@ -62,6 +62,25 @@ def test_a_body_that_is_not_rigid_names_the_missing_degree_of_freedom_not_its_fr
     assert not sc.score_run("vehicle", {"truth": truth, "findings": [axle]})["right"]
 
 
+def test_an_optional_truth_named_is_no_claim_and_not_naming_it_is_no_miss():
+    """A degree of freedom the world has but does not ask for (the whole car's roll, the inclined
+    struts' turning: ``optional``): a body finding that names it is no extra claim and no false alarm
+    on an effect-free run, and is left out of the order; its coverage key is the truth's ``named_as``."""
+    truth = [{"cause": "unmodelled_mode", "value": None, "optional": True, "named_as": "struts"},
+             {"cause": "force_scale", "channel": "f1", "value": 1.03}, {"cause": "force_noise", "value": 1.0}]
+    body = {"cause": "model_form", "channel": "moment", "axle": "body", "estimate": 12.0, "confirmed": False}
+    scale = {"cause": "force_scale", "channel": "f1", "estimate": 1.031, "interval": [1.02, 1.04], "confirmed": True}
+    s = sc.score_run("vehicle", {"truth": truth, "findings": [body, scale]})
+    assert s["right"] and s["confirmed"] and not s["extra_confirmed"] and s["coverage"]["struts/named"] is True
+    free = [truth[0], truth[2]]
+    s = sc.score_run("vehicle", {"truth": free, "findings": [body]})
+    assert s["false_alarm"] is False and s["coverage"]["struts/named"] is True
+    s = sc.score_run("vehicle", {"truth": free, "findings": [dict(body, axle="front")]})  # an axle's is a claim
+    assert s["false_alarm"] is True and s["coverage"]["struts/named"] is False
+    roll = [{"cause": "unmodelled_mode", "value": 1.7, "optional": True}, truth[2]]  # older truths: roll
+    assert sc.score_run("vehicle", {"truth": roll, "findings": []})["coverage"]["roll/named"] is False
+
+
 def test_a_constant_bias_at_the_level_a_walk_held_is_no_extra_claim():
     walk = {"cause": "gyro_bias_drift", "channel": "wx", "value": 6.7e-4, "visibility": 4.0,
             "realised": {"mean": -9.0e-3, "std": 1.0e-3}}
