@@ -20,7 +20,7 @@ Worlds (``WORLDS``; each is a backend of a sweep that scored one world before):
   ``vehicle-car3d/indep``: a car in three dimensions on left and right tracks that differ, measured
   as a half-car (``gen_exudyn.design_car3d``; its truth the sensor and parameter effects alone);
   ``vehicle-struts/indep``: inclined struts whose forces turn with pitch and travel, the model the
-  struts' half-car equivalent (``gen_exudyn.design_struts``; the same truth);
+  struts' half-car equivalent (``gen_exudyn.design_struts``; the same truth, the struts' form optional);
 - ``vehicle-standard/own``: jaxdrift's own generator (``jaxdrift.studies._rungen``, the slow test's
   draw, ``diagnose_sweep.py``);
 - ``attitude-standard/indep``, ``attitude-wide/indep`` and ``attitude-wide2/indep``:

@@ -146,7 +146,7 @@ CAR3D = {"track": (1.4, 1.7), "y_cg": (0.0, 0.04), "roll_share": (0.4, 0.8), "co
 STRUTS = {"theta": (0.1, 0.35), "L": (0.35, 0.6), "H": (0.1, 0.3)}
 
 
-def _struts(rng, car: dict) -> dict:
+def _struts(rng) -> dict:
     S = STRUTS
     return {"kind": "struts", "theta": [float(rng.choice([-1.0, 1.0]) * rng.uniform(*S["theta"])) for _ in range(2)],
             "L": [float(rng.uniform(*S["L"])) for _ in range(2)], "H": float(rng.uniform(*S["H"]))}
@@ -201,7 +201,7 @@ def make_case(case: dict) -> dict:
     elif case.get("design") == "car3d":
         engine, car3d = None, _car3d(rng, car)
     elif case.get("design") == "struts":
-        engine, struts = None, _struts(rng, car)
+        engine, struts = None, _struts(rng)
     else:  # the first world's draws, unchanged
         me = float(rng.uniform(0.08, 0.12) * car["m3"])
         f_mount = float(rng.uniform(8.0, 15.0))
