@@ -55,7 +55,8 @@ def strut_pose(p: dict, shape: dict) -> dict:
     every preload (strut lengths, control arms, tyres) is set to hold it exactly; the equivalent's
     ``a`` and ``b`` are the ones the axles' static loads give (what weighing the car tells a user:
     the struts' lines of action move them by millimetres). Returns
-    ``equivalent`` (the half-car parameters) and the pose's parts."""
+    ``equivalent`` (the half-car parameters) and the pose's parts (``hang``/``top``: each strut's
+    ends on the chassis, in its own frame; ``W``: the hang points in the global frame)."""
     th, Ls, H, g = shape["theta"], shape["L"], shape["H"], p["g"]
     ks = [p[k] / math.cos(t) ** 2 for k, t in zip(("k3", "k4"), th)]
     ds = [p[k] / math.cos(t) ** 2 for k, t in zip(("d3", "d4"), th)]
@@ -70,13 +71,10 @@ def strut_pose(p: dict, shape: dict) -> dict:
         z1, z2, z3, beta = gv.equilibrium(eq)[:4]
         R = _rot(-beta)
         xs, zw = (p["b"], -p["a"]), (z1, z2)
-        W, T, u = [], [], []
-        for i in range(2):  # the chassis point each wheel hangs from (at the wheel), the strut's top
-            h = (H + zw[i] - z3 + xs[i] * math.sin(beta)) / math.cos(beta)
-            w_loc = np.array([xs[i], h])
-            W.append(R @ w_loc)
-            T.append(R @ (w_loc + Ls[i] * np.array([math.sin(th[i]), -math.cos(th[i])])))
-            u.append(R @ np.array([math.sin(th[i]), -math.cos(th[i])]))
+        axis = [np.array([math.sin(t), -math.cos(t)]) for t in th]  # each strut's line, up from the wheel
+        hang = [np.array([xs[i], (H + zw[i] - z3 + xs[i] * math.sin(beta)) / math.cos(beta)]) for i in range(2)]
+        top = [hang[i] + Ls[i] * axis[i] for i in range(2)]  # the chassis point each wheel hangs from, the strut's top
+        W, T, u = [R @ w for w in hang], [R @ t for t in top], [R @ a for a in axis]
         cross = [T[i][0] * u[i][1] - T[i][1] * u[i][0] + W[i][1] * u[i][0] for i in range(2)]
         F_new = [float(f) for f in np.linalg.solve([[u[0][1], u[1][1]], cross], [-p["m3"] * g, 0.0])]
         th_new = [math.atan2(u[i][0], -u[i][1]) for i in range(2)]
@@ -91,8 +89,8 @@ def strut_pose(p: dict, shape: dict) -> dict:
     else:
         raise RuntimeError(f"no static pose found for {p}, {shape}")
     tyre = [p["m1"] * g - F[0] * u[0][1], p["m2"] * g - F[1] * u[1][1]]
-    return {"equivalent": eq, "z": (z1, z2, z3, beta), "W": W, "T": T, "u": u, "F": F, "ks": ks, "ds": ds,
-            "tyre": tyre, "local": [np.linalg.solve(R, w) for w in W]}
+    return {"equivalent": eq, "z": (z1, z2, z3, beta), "W": W, "u": u, "F": F, "ks": ks, "ds": ds,
+            "tyre": tyre, "hang": hang, "top": top}
 
 
 def simulate_struts(p: dict, road, v: float, x0: float, t_end: float, fs: float, shape: dict,
@@ -101,12 +99,12 @@ def simulate_struts(p: dict, road, v: float, x0: float, t_end: float, fs: float,
     ``fine``), from its static pose. Returns ``t``, ``z3``, ``beta``, ``z1``/``z2``, ``v1``/``v2``,
     ``s1``/``s2`` (the paper's travel ``z3 - z1 - b sin beta`` and ``z3 - z2 + a sin beta``) and
     ``f1``/``f2`` (the tyre forces)."""
-    mbs, sensors, wheels = _build(p, road, v, x0, shape)
+    mbs, sensors, wheels, P = _build(p, road, v, x0, shape)
     data = solve_stored(mbs, sensors, t_end, fs, substeps, fine, NEWTON_ATOL)
     t = data[0][:, 0]
     out = {"t": t, "z3": data[0][:, 2], "beta": -data[0][:, 3]}
     sb = np.sin(out["beta"])
-    eq = strut_pose(p, shape)["equivalent"]
+    eq = P["equivalent"]
     for i, (w, x) in enumerate(zip(wheels, (eq["b"], -eq["a"]))):  # the travel as the model defines it
         j = str(i + 1)
         zw, vw = data[1 + 2 * i][:, 2], data[2 + 2 * i][:, 2]
@@ -123,7 +121,7 @@ def linear_stiffness(p: dict, shape: dict) -> np.ndarray:
     chassis's height, its rotation (minus the paper's pitch) and the two wheels' heights."""
     import exudyn as exu
 
-    mbs, _, _ = _build(p, lambda x: (0.0, 0.0), 0.0, 0.0, shape)
+    mbs = _build(p, lambda x: (0.0, 0.0), 0.0, 0.0, shape)[0]
     mbs.Assemble()
     K = np.asarray(mbs.ComputeLinearizedSystem(exu.SimulationSettings())[1])
     r, x = [1, 2, 4, 6], [3, 5]  # (chassis x, y, rotation, wheel 1 x, y, wheel 2 x, y)
@@ -131,7 +129,7 @@ def linear_stiffness(p: dict, shape: dict) -> np.ndarray:
 
 
 def _build(p: dict, road, v: float, x0: float, shape: dict):
-    """The strut car's Exudyn system at its static pose: ``(mbs, sensors, wheels)``."""
+    """The strut car's Exudyn system at its static pose: ``(mbs, sensors, wheels, strut_pose(p, shape))``."""
     import exudyn as exu
     from exudyn.itemInterface import (CartesianSpringDamper, MarkerBodyPosition, MarkerNodePosition, MassPoint2D,
                                       NodePoint2D, NodeRigidBody2D, ObjectRigidBody2D, SpringDamper)
@@ -150,8 +148,7 @@ def _build(p: dict, road, v: float, x0: float, shape: dict):
         n = mbs.AddNode(NodePoint2D(referenceCoordinates=[X, H], initialCoordinates=[0.0, zi]))
         bodies.append(mbs.AddObject(MassPoint2D(mass=m, nodeNumber=n)))
         mw = mbs.AddMarker(MarkerNodePosition(nodeNumber=n))
-        w_loc, u = P["local"][i], P["u"][i]
-        t_loc = w_loc + shape["L"][i] * np.array([math.sin(shape["theta"][i]), -math.cos(shape["theta"][i])])
+        w_loc, t_loc, u = P["hang"][i], P["top"][i], P["u"][i]
         mc = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[float(w_loc[0]), float(w_loc[1]), 0.0]))
         mt = mbs.AddMarker(MarkerBodyPosition(bodyNumber=body, localPosition=[float(t_loc[0]), float(t_loc[1]), 0.0]))
         F = P["F"][i]  # the strut's compression at rest: the spring is that much longer unloaded
@@ -169,7 +166,7 @@ def _build(p: dict, road, v: float, x0: float, shape: dict):
     sensors = [node_sensor(mbs, nb, "Coordinates")]
     for w in wheels:
         sensors += [node_sensor(mbs, w["node"], "Coordinates"), node_sensor(mbs, w["node"], "Coordinates_t")]
-    return mbs, sensors, wheels
+    return mbs, sensors, wheels, P
 
 
 def compare(seed: int = 1, road_class: str = "C", v: float = 15.0, t_end: float = 5.0, fs: float = 1000.0,
