@@ -482,7 +482,14 @@ def score_run(kind: str, rec: dict) -> dict:
     out = {"n_systematic": len(truth), "n_invisible": len(truth_all) - len(truth)}
     if truth:
         out["right"] = bool(s.get("right"))
-        out["confirmed"] = bool(s.get("right") and s.get("right_all_confirmed") is not False)
+        # a hidden parameter error within the confirmation margin (1 %) is one the report must name
+        # but not confirm: a change no engineer acts on (issue #47); it is no demand on "confirmed"
+        from jaxdrift.diagnosis.vehicle import PARAMETER_ERROR
+
+        small = {_target(e) for e in seen if e["cause"] == PARAMETER_ERROR.name
+                 and abs(e["value"] - 1.0) <= PARAMETER_ERROR.confirm_margin}
+        asked = [f for f in findings if _target(f) in truth and _target(f) not in small]
+        out["confirmed"] = bool(s.get("right") and all(f.get("confirmed", True) for f in asked))
     elif not truth_all:
         out["false_alarm"] = bool(s.get("false_alarm"))
     extra = []

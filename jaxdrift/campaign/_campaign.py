@@ -285,7 +285,7 @@ def campaign(runs=(), *, model=None, out, manifest=None, workers: int | None = N
             joint["consistency"] = consistency_summary([check_consistency(e, family=len(params)) for e in params])
             lin = _findings(joint, results)
             # a parameter the stacked fit chose but the runs' own estimates do not show (their mean's
-            # interval holds "no error", or it is within the single-run confirmation margin, 0.5 %)
+            # interval holds "no error", or it is within the single-run confirmation margin, 1 %)
             # is no finding, and there is nothing to check between runs
             from ..diagnosis.vehicle import PARAMETER_ERROR
 

@@ -337,7 +337,13 @@ class ParameterError(CauseKind, ModelParameter):
     unit = "ratio"
     target_key = "parameter"
     practical = 2e-4
-    confirm_margin = 0.005
+    #: 1 %: a spring, a damper, a mass or a lever within a percent of its data-sheet value is no
+    #: finding an engineer acts on (catalogue rates hold +-5 %, a pitch inertia is known to a few
+    #: percent, a centre of mass to a centimetre). Where the model lacks a degree of freedom, what it
+    #: cannot make is read as changes of this size: on the inclined-strut world (30 runs, seed
+    #: 20261223) the pitch inertia, the levers and an unsprung mass were confirmed at 0.5-1 %
+    #: in 5 of 30 runs with no such error hidden (0.5 % was the margin then)
+    confirm_margin = 0.01
     is_sensor = False
     draw_sizes = {"realistic": (0.04, 0.10), "small": (0.015, 0.03)}
 
