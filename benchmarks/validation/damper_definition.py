@@ -24,6 +24,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--definition", choices=("mean", "compression"), default="compression")
     ap.add_argument("--n", type=int, default=6)
+    ap.add_argument("--seed", type=int, default=9000, help="run k's generator seed is SEED + k")
     ap.add_argument("--out", required=True)
     a = ap.parse_args(argv)
     import jax
@@ -36,7 +37,7 @@ def main(argv=None):
     os.makedirs(out, exist_ok=True)
     for k in range(a.n):
         case = {"index": k, "stratum": "single", "what": [["damper_asymmetry", "d3" if k % 2 == 0 else "d4"]],
-                "seed": 9000 + k, "design": "nonlinear"}
+                "seed": a.seed + k, "design": "nonlinear"}
         case = gv.make_case(case, durations=(10.0, 10.0), rates=(200, 500))
         for e in case["effects"]:
             if e["cause"] == "damper_asymmetry":

@@ -89,7 +89,7 @@ def _whitener(e: np.ndarray, p: int):
 
 def _channel_test(y, N, S, fs, fc):
     """Per column of S added to the nuisance N: (t, theta, se, dof, RMS left by the nuisance
-    alone, RMS left with the column), in the adequacy band."""
+    alone, RMS left with the column, the coefficients of N's columns beside it), in the adequacy band."""
     y, N, S = _prep(y, fs, fc), _prep(N, fs, fc), _prep(S, fs, fc)
     n = len(y)
     t = np.linspace(-1.0, 1.0, n)
@@ -111,7 +111,7 @@ def _channel_test(y, N, S, fs, fc):
         se = math.sqrt(max(cov[-1, -1], 1e-300))
         Xr = np.column_stack([N, S[:, j]])
         c1, *_ = np.linalg.lstsq(Xr, y, rcond=None)
-        out.append((coef[-1] / se, coef[-1], se, dof, _rms(e0), _rms(y - Xr @ c1)))
+        out.append((coef[-1] / se, coef[-1], se, dof, _rms(e0), _rms(y - Xr @ c1), coef[2:-1]))
     return out
 
 
@@ -202,7 +202,7 @@ def _significant(terms, tests, scales, m, skip=()):
     strongest first."""
     hits = []
     for nm, d in tests.items():
-        for j, (t, th, se, dof, _, _) in enumerate(d["tests"]):
+        for j, (t, th, se, dof, *_) in enumerate(d["tests"]):
             size = None if j in skip else _explained(t, th, dof, d["S"][:, j], scales[nm], m)
             if size is not None:
                 hits.append((abs(t), nm, j, th, se, size))
@@ -243,6 +243,8 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
                 th, se, st_c, _ = _refine(prob, st, c, d, th, se)
                 th_iv = (th - 1.96 * se, th + 1.96 * se)
             th = min(max(th, lo), hi)
+            if c.mean_column is not None:  # the law's mean change beside it (a damper's mean damping)
+                c.mean = min(max(1.0 + _with_mean(prob, st.p, c, d, st_c, taken[:-1])[3], 0.7), 3.0)  # |theta| <= 0.6
             est = c.to_estimate(th, st)
             iv = sorted((c.to_estimate(max(th_iv[0], lo), st), c.to_estimate(min(th_iv[1], hi), st)))
             iv = [min(iv[0], est - c.resolution * abs(est)), max(iv[1], est + c.resolution * abs(est))]
@@ -304,20 +306,37 @@ def _refine(prob, st, c, d, th, se):
     n = len(st.u[0])
     u, v = [np.array(x) for x in st.u], [np.array(x) for x in st.v]
     cur = st
+    shift = 0.0  # the law's mean change beside the term (``mean_column``), moving the travel too
     for _ in range(REFINE_ITERS):
         f = th * c.force(cur)
+        if c.mean_column is not None:
+            f = f + shift * p[c.target] * cur.v[c.axle]
         du, dv = travel_response(pipe, p, _on_axle(c.axle, f))
         i = c.axle
         u[i] = (1 - REFINE_RELAX) * u[i] + REFINE_RELAX * (st.u[i] + du[i][:n])
         v[i] = (1 - REFINE_RELAX) * v[i] + REFINE_RELAX * (st.v[i] + dv[i][:n])
         cur = States(tuple(u), tuple(v), st.s0, p)
         S = _column(prob, p, c.axle, c.force(cur), d["name"])[:, None]
-        t, th_new, se, *_ = _channel_test(d["y"], d["N"], S, fs, d["fc"])[0]
+        if c.mean_column is None:
+            t, th_new, se, *_ = _channel_test(d["y"], d["N"], S, fs, d["fc"])[0]
+        else:  # the term and the linear damper's change beside it, both at this travel
+            t, th_new, se, shift = _with_mean(prob, p, c, d, cur)
         if abs(th_new - th) <= 1e-4 * abs(th):
             th = th_new
             break
         th = th_new
     return th, se, cur, t
+
+
+def _with_mean(prob, p: dict, c, d: dict, st, taken=()) -> tuple:
+    """``(t, theta, se, shift)``: the term fitted with the relative change of the law's mean
+    (``c.mean_column``: the linear damper of the term's axle) beside it, both at the states ``st``,
+    with the terms ``taken`` as further nuisance columns."""
+    N = np.column_stack([d["N"], d["S"][:, list(taken)]])
+    N[:, c.mean_column] = -_column(prob, p, c.axle, p[c.target] * st.v[c.axle], d["name"])
+    S = _column(prob, p, c.axle, c.force(st), d["name"])[:, None]
+    t, th, se, *_, nuis = _channel_test(d["y"], N, S, 1.0 / prob.pipe.h, d["fc"])[0]
+    return t, th, se, -float(nuis[c.mean_column])
 
 
 #: the stop travels searched, as quantiles of the linear model's travel, and the steps of the search
@@ -430,7 +449,7 @@ def detection_limit(j, tests, scales, m) -> float:
     must meet (``_significant``); ``inf`` where no channel has the column."""
     best = math.inf
     for nm, d in tests.items():
-        t, th, se, dof, _, _ = d["tests"][j]
+        t, th, se, dof, *_ = d["tests"][j]
         size1 = _rms(d["S"][:, j])
         if not np.isfinite(se) or se <= 0 or size1 <= 0:
             continue

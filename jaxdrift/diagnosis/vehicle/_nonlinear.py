@@ -69,6 +69,10 @@ class NonlinearCause(AbstractCause, StateForce):
     #: profile of the term's travel (a bump stop) rather than refined at the model's states
     nameable = True
     sized_by_travel_profile = False
+    #: the nuisance column of the adequacy test (``_adequacy._tests``: front k, front d, rear k,
+    #: rear d) that holds the change of the law's mean beside this term, None where the size does
+    #: not depend on it
+    mean_column: int | None = None
     #: the relative resolution of the cause's size: its 95 % interval is never narrower than +- this
     #: share of the estimate. The statistical interval can fall far below what the model resolves:
     #: with the travel measured, +-1e-5 of the size around estimates off by up to 2.7e-4 (nonlinear
@@ -118,10 +122,21 @@ class NonlinearCause(AbstractCause, StateForce):
 
 
 class DamperAsymmetry(NonlinearCause):
-    """Rebound damping ``d (1 + theta)``, compression ``d (1 - theta)`` (mean kept: a mean error is
-    the linear ``parameter_error``); reported as the rebound/compression ratio."""
+    """Rebound damping ``d (m + theta)``, compression ``d (m - theta)``: ``theta`` the term's size,
+    ``m`` the mean damping over the fitted model's ``d`` (``mean``: the adequacy test's linear damper
+    column beside the term, set where the term is sized; 1 until then). Reported as the
+    rebound/compression ratio ``(m + theta) / (m - theta)``: a law written as "compression d,
+    rebound rho d" has a mean ``(1 + rho) / 2`` times its d, and reading the ratio as
+    ``(1 + theta) / (1 - theta)`` on such a run gave 3 for 2 where nothing else took the mean.
+    The extended model keeps the ratio with the model's mean (a mean error is the linear
+    ``parameter_error``, chosen again on the model that has the ratio)."""
 
     name, unit, spring_or_damper = "damper_asymmetry", "ratio", "d"
+    mean = 1.0
+
+    def __init__(self, axle: int):
+        super().__init__(axle)
+        self.mean_column = 1 + 2 * axle
 
     def state_words(self):
         return (f"|s{self.axle + 1}'|", f"the size of the {AXLES[self.axle]} damper's velocity, with opposite "
@@ -135,7 +150,7 @@ class DamperAsymmetry(NonlinearCause):
         return -0.6, 0.6  # ratio 0.25 ... 4
 
     def to_estimate(self, theta, st):
-        return (1.0 + theta) / (1.0 - theta)
+        return (self.mean + theta) / (self.mean - theta)
 
     def correction(self, theta, st):
         return {f"damper_ratio{self.axle + 3}": self.to_estimate(theta, st)}
@@ -147,14 +162,14 @@ class DamperAsymmetry(NonlinearCause):
         return 0.15 / 2.15  # ratio 1.15
 
     def size_words(self, theta, st):
-        r = self.to_estimate(abs(theta), st)
+        r = (1.0 + abs(theta)) / (1.0 - abs(theta))  # at the model's mean
         return f"a rebound/compression ratio of {r:.3g} (or 1/{r:.3g})"
 
     def describe(self, theta, st):
         r = self.to_estimate(theta, st)
         which = "stiffer in rebound than in compression" if r > 1 else "stiffer in compression than in rebound"
         return (f"the {AXLES[self.axle]} damper is {which}: rebound/compression ratio {r:.3g} "
-                f"({self.target} x {1 + theta:.3g} in rebound, x {1 - theta:.3g} in compression)")
+                f"({self.target} x {self.mean + theta:.3g} in rebound, x {self.mean - theta:.3g} in compression)")
 
 
 class ProgressiveSpring(NonlinearCause):
