@@ -255,29 +255,29 @@ def test_linear_stand_in_for_an_unseen_stop_says_so():
     assert d3[0]["may_stand_in_for"] == ["damper_asymmetry"]
 
 
-@pytest.mark.parametrize("channels", ["beta_z3_s", "beta_z3"])
-def test_damper_ratio_holds_whatever_share_of_the_mean_the_fit_took_first(tmp_path, channels):
-    """Issue #47, item 3: a damper written "compression d, rebound 2 d" (another generator's habit:
-    the mean damping 1.5 d) has the rebound/compression ratio 2. The adequacy test may run on the
-    model with no causes (``select_with_form``), where nothing has taken the mean yet: the ratio is
-    read with the mean the test's own linear damper column finds beside the term, so it is 2 there
-    too (read as (1 + theta) / (1 - theta) it was 3.0), and alike on the fitted model (d4 x 1.5)."""
+@pytest.mark.parametrize("channels,ratio", [("beta_z3_s", 2.0), ("beta_z3_s", 0.6), ("beta", 0.6)])
+def test_damper_ratio_holds_whatever_share_of_the_mean_the_fit_took_first(tmp_path, channels, ratio):
+    """Issue #47, item 3: a damper written "compression d, rebound rho d" (another generator's
+    habit: the mean damping (1 + rho) / 2 times d). The adequacy test may run on the model with no
+    causes (``select_with_form``), where nothing has taken the mean yet: the ratio is read with the
+    mean that the test's own linear damper column finds beside the term, so it is rho there too, as
+    on the model whose d4 carries the mean. Read as (1 + theta) / (1 - theta) it was 3.00 for 2
+    (travel measured), 0.667 and 0.649 for 0.6, outside their intervals."""
     from benchmarks.validation.gen_vehicle import make_run
     from jaxdrift.diagnosis.vehicle._adequacy import assess_model_form
     from jaxdrift.diagnosis.vehicle._problem import _Problem
     from jaxdrift.diagnosis.vehicle._residuals import ResidualPipeline
+    from jaxdrift.io._corrections import NO_CORRECTION
 
-    case = _case([{"cause": "damper_asymmetry", "parameter": "d4", "value": 2.0, "definition": "compression"}],
+    case = _case([{"cause": "damper_asymmetry", "parameter": "d4", "value": ratio, "definition": "compression"}],
                  channels=channels, duration=8.0)
     paths = make_run(case, str(tmp_path), "run")
     model = jaxdrift.read_model(paths["model"])
     prob = _Problem(ResidualPipeline(jaxdrift.read_vehicle_run(paths["csv"])), model)
-    for d4 in (1.0, 1.5):  # the model as given, and with the mean's error fitted
+    for d4 in (1.0, (1.0 + ratio) / 2):  # the model as given, and with the mean's error fitted
         p = {**model, "d4": d4 * model["d4"]}
-        from jaxdrift.io._corrections import NO_CORRECTION
-
         form = assess_model_form(prob, p, NO_CORRECTION, prob.pipe.residuals(p, NO_CORRECTION), True)
         f = [g for g in form["findings"] if g["cause"] == "damper_asymmetry"]
         assert f and f[0]["parameter"] == "d4", form["findings"]
-        assert f[0]["estimate"] == pytest.approx(2.0, rel=0.03), (d4, f[0])
-        assert f[0]["interval"][0] <= 2.0 <= f[0]["interval"][1] or abs(f[0]["estimate"] - 2.0) < 0.02, f[0]
+        assert f[0]["estimate"] == pytest.approx(ratio, rel=0.01), (d4, f[0])
+        assert f[0]["interval"][0] <= ratio <= f[0]["interval"][1], (d4, f[0])
