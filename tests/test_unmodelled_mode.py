@@ -164,14 +164,16 @@ def test_a_cause_beside_a_mode_carries_the_modes_frequency_error(tmp_path):
     front damper x1.0056, class C road at 16 m/s, 500 Hz): the damper's interval carries the mode's
     frequency error as sized beside it (``_mode.settled_half``, ``_mode.mode_shift_var``), holds the
     truth and still excludes no error. With the mode's reported interval, which holds the search's
-    move of 0.16 Hz to the final size, it read [0.983, 1.028] while confirmed."""
+    move of 0.16 Hz to the final size, it read [0.983, 1.028] while confirmed. Within 1 % of the
+    model, it is listed unconfirmed: a difference no engineer acts on (issue #47)."""
     from benchmarks.validation import gen_exudyn as ge
 
     paths = ge.make_run(ge.design_modes(32, 20261218)[27], str(tmp_path))
     d3 = next(e["value"] for e in paths["case"]["effects"] if e.get("parameter") == "d3")
     rep = _diagnose(paths)
     f = next(f for f in rep["findings"] if f["cause"] == "parameter_error" and f.get("parameter") == "d3")
-    assert f["confirmed"] and "unmodelled mode's frequency error" in f["evidence"], f
+    assert "unmodelled mode's frequency error" in f["evidence"], f
+    assert f["confirmed"] is False and "within 0.01 (ratio) of no effect" in f["evidence"], f
     assert f["interval"][0] <= d3 <= f["interval"][1] and f["interval"][0] > 1.0, (d3, f["interval"])
 
 

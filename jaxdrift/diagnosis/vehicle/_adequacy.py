@@ -244,7 +244,7 @@ def _named(prob, st, terms, tests, scales, m, correction) -> tuple[list[dict], t
                 th_iv = (th - 1.96 * se, th + 1.96 * se)
             th = min(max(th, lo), hi)
             if c.mean_column is not None:  # the law's mean change beside it (a damper's mean damping)
-                c.mean = min(max(1.0 + _with_mean(prob, st.p, c, d, st_c, taken[:-1])[3], 0.7), 3.0)  # |theta| <= 0.6
+                c = c.with_mean(min(max(1.0 + _with_mean(prob, st.p, c, d, st_c, taken[:-1])[3], 0.7), 3.0))  # |theta| <= 0.6
             est = c.to_estimate(th, st)
             iv = sorted((c.to_estimate(max(th_iv[0], lo), st), c.to_estimate(min(th_iv[1], hi), st)))
             iv = [min(iv[0], est - c.resolution * abs(est)), max(iv[1], est + c.resolution * abs(est))]

@@ -70,7 +70,7 @@ class CauseKind(AbstractCause):
     #: reporting, far below any sensor's specification
     practical: ClassVar[float | None] = 0.0
     #: a cause whose size is at most this (|theta|; :meth:`margin`) is not confirmed, whatever its
-    #: z: a change no engineer would act on (a spring within half a percent of the model is no
+    #: z: a change no engineer would act on (a spring within a percent of the model is no
     #: finding), listed unconfirmed with that reason (``_confirm.confirm_corrections``)
     confirm_margin: ClassVar[float] = 0.0
     #: method component of a finding's 95 % interval, relative to the size of the effect

@@ -132,11 +132,15 @@ class DamperAsymmetry(NonlinearCause):
     ``parameter_error``, chosen again on the model that has the ratio)."""
 
     name, unit, spring_or_damper = "damper_asymmetry", "ratio", "d"
-    mean = 1.0
 
-    def __init__(self, axle: int):
+    def __init__(self, axle: int, mean: float = 1.0):
         super().__init__(axle)
         self.mean_column = 1 + 2 * axle
+        self.mean = mean
+
+    def with_mean(self, mean: float) -> "DamperAsymmetry":
+        """The same term read with the mean damping ``mean`` (a new object)."""
+        return DamperAsymmetry(self.axle, mean)
 
     def state_words(self):
         return (f"|s{self.axle + 1}'|", f"the size of the {AXLES[self.axle]} damper's velocity, with opposite "
