@@ -117,7 +117,8 @@ def _state_of(spec, model, model_given, causes, theta):
     prob = _problem(spec, model, model_given)
     prob = prob.with_pipe(prob.pipe.with_extra(None))
     p_ext, corr = apply_causes(model, causes, theta)
-    return prob, p_ext, corr, prob.pipe.residuals(p_ext, corr), model_states(prob.pipe, p_ext, corr)
+    return (prob, p_ext, corr, prob.pipe.residuals(p_ext, corr),
+            model_states(prob.pipe, p_ext, corr, prob.travel_clean))
 
 
 def size_task(spec, *, model: dict, model_given: bool, causes, theta, terms: list[dict], joint: list | None = None,

@@ -148,3 +148,75 @@ def measure_motion_noise(prob) -> tuple[dict, dict, dict]:
         out[col] = {"sigma": est if found else 0.0, "estimate": est, "z": z,
                     "share": share, "written": written_noise_sigma(run[col]), "floor": fl}
     return out, resp, shapes
+
+
+#: the travel's periodogram is smoothed over this share of its bins (at least 17) before it is
+#: compared with its noise: a smoothed periodogram of noise alone then scatters by 20 % or less,
+#: never up to the threshold
+TRAVEL_SMOOTH = 0.01
+#: the travel is kept up to the highest frequency where its power stands this many times above
+#: the white noise's, and tapered to nothing over the next quarter of that frequency
+TRAVEL_SNR = 2.0
+
+
+def denoised_travel(pipe: ResidualPipeline, motion_noise: dict) -> tuple[dict, dict]:
+    """The measured spring travel columns with the white sensor noise found on them
+    (``motion_noise``, :func:`measure_motion_noise`) taken out above the travel's own band
+    (``{column: samples}``), and ``{column: {"sigma", "cutoff_hz"}}``; empty where none was found.
+
+    The nonlinear terms act on the travel and its rate (``_nonlinear.model_states``): a stop or an
+    asymmetric damper read off the noisy travel is a function of a regressor with errors, and the
+    rate's noise (white per sample, differentiated: growing with frequency) folds through the
+    term's kink into the band it is compared in; its size comes out biased (1e-4 m at 500 Hz: a
+    damper ratio 0.759 read 0.716, 1.18 read 1.218). The comparison itself keeps the travel as
+    measured: its spring channels are already low-passed where the noise would reach them
+    (``_problem.choose_bands``). Each column's padded spectrum (the pipeline's,
+    ``_padded_spectrum``) is kept up to the highest frequency where its power, smoothed over
+    ``TRAVEL_SMOOTH`` of the bins, stands ``TRAVEL_SNR`` times above the noise's (``n sigma^2`` per
+    bin) and tapered (raised cosine) to nothing over the next quarter of that frequency: above it
+    the travel is noise. Measured in ``benchmarks/validation/nonlinear_sizes.py``."""
+    sigmas = {c: float(motion_noise[c]["sigma"]) for c in ("s1", "s2")
+              if motion_noise.get(c, {}).get("sigma", 0.0) > 0}
+    if not sigmas:
+        return {}, {}
+    import scipy.fft
+    import scipy.ndimage
+
+    cols, taken = {}, {}
+    for c, sig in sigmas.items():
+        x = np.asarray(pipe.run[c], dtype=float)
+        X, N, m = pipe._padded_spectrum(x)
+        f = np.fft.rfftfreq(N, pipe.h)
+        P = scipy.ndimage.uniform_filter1d(np.abs(X) ** 2, max(17, int(TRAVEL_SMOOTH * len(X))), mode="nearest")
+        above = np.nonzero(P > TRAVEL_SNR * len(x) * sig ** 2)[0]
+        fc = float(f[above.max()]) if above.size else float(f[1])
+        if fc * 1.25 >= f[-1]:  # the travel stands above its noise everywhere: nothing to take out
+            continue
+        H = np.where(f <= fc, 1.0, 0.5 * (1.0 + np.cos(np.pi * np.clip((f - fc) / (0.25 * fc), 0.0, 1.0))))
+        cols[c] = scipy.fft.irfft(X * H, n=N)[m:m + len(x)]
+        taken[c] = {"sigma": sig, "cutoff_hz": fc}
+    return cols, taken
+
+
+def sensor_noise_notes(prob) -> list[str]:
+    """The report's notes on the sensor noise of the measured motion: the travel's noise taken
+    out for the nonlinear terms (:func:`denoised_travel`), and each channel compared band-limited
+    because of it."""
+    notes = []
+    for col, tk in sorted(prob.travel_noise.items()):
+        sig = tk["sigma"]
+        notes.append(f"White sensor noise on the measured {col} (about {sig:.2g} m per sample) was taken out of it "
+                     f"above {tk['cutoff_hz']:.3g} Hz (above that its spectrum holds that noise alone) for the "
+                     f"nonlinear terms: a stop or an asymmetric damper read off the noisy travel and its rate "
+                     f"comes out biased.")
+    for name, (fc, _) in sorted(prob.pipe.band.items()):
+        col = MOTION_COLUMN[name]
+        mn = prob.motion_noise[col]
+        unit = 'rad' if col == 'beta' else 'm'
+        notes.append(f"White sensor noise on the measured {col} (about {mn['sigma']:.2g} {unit} per sample, "
+                     f"{100 * mn['share']:.0f} % of the {name} residual above {TOP_BAND[0] * 100:.0f} % of the "
+                     f"sampling rate; printing the values with their digits alone adds {mn['written']:.2g} {unit}) "
+                     f"swamps its derivatives: the {name} "
+                     f"residual is compared below {fc:.3g} Hz only, and what shows only above that "
+                     "(wheel hop, fast delays) is not seen.")
+    return notes

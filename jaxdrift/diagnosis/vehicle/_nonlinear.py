@@ -352,9 +352,10 @@ def nonlinear_cause_names() -> tuple[str, ...]:
 
 
 # ----------------------------------------------------------------------------- states, signatures
-def model_states(pipe, p: dict, corr: dict) -> States:
+def model_states(pipe, p: dict, corr: dict, travel: dict | None = None) -> States:
     """Spring travel and rate of the fitted model driven by the corrected forces (fine grid); the
-    measured travel and its rate where there is one."""
+    measured travel and its rate where there is one, ``travel`` (``{column: samples}``) where given:
+    the measured travel without its sensor noise (``_motion_noise.denoised_travel``)."""
     forces_c, _ = pipe._corrected_coeffs(corr, False)
     f3, f4, x = pipe.simulate(p, None, forces_c=forces_c)
     a, b = p["a"], p["b"]
@@ -372,8 +373,13 @@ def model_states(pipe, p: dict, corr: dict) -> States:
     # real travel, which the linear model overshoots wherever the real law is stiffer (a stop: 61 mm
     # of model travel where the stop begins at 52 mm), and a damper law on the real rate (the
     # model's rate left small damping errors of the same damper beside an asymmetry)
-    s = tuple(pipe.s_f[f"s{i + 1}"] if pipe.has_s[i] else s[i] for i in (0, 1))
-    ds = tuple(pipe.ds[f"s{i + 1}"] if pipe.has_s[i] else ds[i] for i in (0, 1))
+    s, ds = list(s), list(ds)
+    for i, nm in enumerate(("s1", "s2")):
+        if nm in (travel or {}):
+            s[i] = pipe._resample(travel[nm])
+            ds[i] = CubicSpline(pipe.tauf, s[i])(pipe.tauf, 1)
+        elif pipe.has_s[i]:
+            s[i], ds[i] = pipe.s_f[nm], pipe.ds[nm]
     n = len(s[0])
     return States(tuple(np.asarray(s[i][:n]) - s0[i] for i in (0, 1)), tuple(np.asarray(ds[i][:n]) for i in (0, 1)),
                   s0, p)

@@ -12,7 +12,7 @@ import scipy.signal
 
 from ._causes import FORCE_CHANNELS, _apply, _clip_theta
 from ._detectors import MOTION_COLUMN, NOISE_MIN_N, _force_hf_noise, lowband_cutoff
-from ._motion_noise import measure_motion_noise
+from ._motion_noise import denoised_travel, measure_motion_noise
 from ._residuals import ResidualPipeline, Residuals
 
 
@@ -44,6 +44,9 @@ class _Problem:
         self._ir_cache: dict = {}
         self.ir, self.noise_std = self.impulse_responses(model)
         self.motion_noise, self._motion_resp, shapes = measure_motion_noise(self)
+        #: the measured spring travel without the sensor noise found on it, for the nonlinear
+        #: terms (``{column: samples}``), and what was taken out (``{column: {"sigma", "cutoff_hz"}}``)
+        self.travel_clean, self.travel_noise = denoised_travel(pipe, self.motion_noise)
         band = choose_bands(pipe, model, self.names, self.ir, self.motion_noise, shapes,
                             self.MOTION_NOISE_SHARE)
         if band:

@@ -12,10 +12,11 @@ from ...io._csvio import MODEL_KEYS
 from ...io._timebase import run_block
 from ._causes import FORCE_CHANNELS, FORCE_NOISE, FORCE_OFFSET, PARAMETER_ERROR, Cause, _apply, _finding_for, _practical
 from ._confirm import OOS_STRETCHES
-from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, TOP_BAND, _force_hf_noise, force_top_band_shared,
+from ._detectors import (MOTION_COLUMN, NOISE_MIN_N, _force_hf_noise, force_top_band_shared,
                          force_top_band_white,
                          lowband_cutoff, written_digits)
 from ._mode import mode_shift_var, settled_half
+from ._motion_noise import sensor_noise_notes
 from ._problem import _Problem
 from ._residuals import Residuals
 from ._residuals import kept as _kept
@@ -393,16 +394,7 @@ def identifiability_notes(prob: "_Problem", sel) -> list[str]:
     if len(sel.fit.r) > 2 and not run.has("z3"):
         notes.append("Without z3 a chassis-mass error and equal offsets on both forces differ only "
                      "in their small dynamic signature.")
-    for name, (fc, _) in sorted(prob.pipe.band.items()):
-        col = MOTION_COLUMN[name]
-        mn = prob.motion_noise[col]
-        unit = 'rad' if col == 'beta' else 'm'
-        notes.append(f"White sensor noise on the measured {col} (about {mn['sigma']:.2g} {unit} per sample, "
-                     f"{100 * mn['share']:.0f} % of the {name} residual above {TOP_BAND[0] * 100:.0f} % of the "
-                     f"sampling rate; printing the values with their digits alone adds {mn['written']:.2g} {unit}) "
-                     f"swamps its derivatives: the {name} "
-                     f"residual is compared below {fc:.3g} Hz only, and what shows only above that "
-                     "(wheel hop, fast delays) is not seen.")
+    notes += sensor_noise_notes(prob)
     return notes
 
 
