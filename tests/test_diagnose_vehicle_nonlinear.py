@@ -301,6 +301,9 @@ def test_nonlinear_size_holds_with_noise_on_the_measured_travel(tmp_path, effect
     assert f and f[0]["parameter"] == effect["parameter"], rep["findings"]
     assert f[0]["interval"][0] <= truth <= f[0]["interval"][1], (truth, f[0]["estimate"], f[0]["interval"])
     assert f[0]["estimate"] == pytest.approx(truth, rel=0.03)
+    # the size read off the travel as recorded is given beside it, half the difference in the interval
+    shift = abs(f[0]["estimate_noisy_travel"] - f[0]["estimate"])
+    assert f[0]["interval"][0] <= f[0]["estimate"] - 0.5 * shift + 1e-12 and "as recorded" in f[0]["evidence"]
     took = [n for n in rep["notes"] if "was taken out of it above" in n and "for the nonlinear terms" in n]
     levels = [float(n.split("(about ")[1].split(" m per sample")[0]) for n in took]
     assert len(levels) == 2 and all(abs(x / 1e-4 - 1) < 0.15 for x in levels), took

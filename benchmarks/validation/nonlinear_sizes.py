@@ -62,7 +62,7 @@ def one(case: dict, level: float, out: str) -> dict:
     if f is not None:
         row.update({"estimate": f["estimate"], "interval": f["interval"], "confirmed": f.get("confirmed"),
                     "held": f["interval"][0] <= eff["value"] <= f["interval"][1],
-                    "error": f["estimate"] / eff["value"] - 1.0})
+                    "error": f["estimate"] / eff["value"] - 1.0, "estimate_noisy_travel": f.get("estimate_noisy_travel")})
     return row
 
 

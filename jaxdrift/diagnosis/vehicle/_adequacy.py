@@ -269,11 +269,13 @@ def _named(prob, st, terms, tests, scales, m, correction, st_raw=None) -> tuple[
             c, th, st_c, iv = _sized(prob, st, c0, d, th, se, taken[:-1])
             est = c.to_estimate(th, st)
             iv = [min(iv[0], est - c.resolution * abs(est)), max(iv[1], est + c.resolution * abs(est))]
+            raw = None
             if st_raw is not None and prob.pipe.has_s[c.axle]:
                 # sized again on the travel as measured, its noise and all: what the noise did to
                 # the size, a share of it in the interval (``NOISE_SHIFT_SHARE``)
                 c_r, th_r, _, _ = _sized(prob, st_raw, c0, d, th, se, taken[:-1])
-                w = NOISE_SHIFT_SHARE * abs(est - c_r.to_estimate(th_r, st_raw))
+                raw = float(c_r.to_estimate(th_r, st_raw))
+                w = NOISE_SHIFT_SHARE * abs(est - raw)
                 iv = [min(iv[0], est - w), max(iv[1], est + w)]
             ev = (f"{c.describe(th, st)[0].upper()}{c.describe(th, st)[1:]}: the {_WORDS[nm]} left after the "
                   f"fit grows with {phrase} (compared below {band[1]:.3g} Hz, z = {z:.1f}); with the correction its "
@@ -287,10 +289,15 @@ def _named(prob, st, terms, tests, scales, m, correction, st_raw=None) -> tuple[
                    f"{held[1]:.4g} {_UNITS[nm]})")
             if not ok:
                 ev += "; not confirmed, left out of the extended model"
+            if raw is not None:
+                ev += (f"; read off the travel as recorded, with its sensor noise, it would be {raw:.4g} {c.unit} "
+                       f"(the interval holds {NOISE_SHIFT_SHARE:g} of that difference)")
             f = {"cause": c.name, "parameter": c.target, "confirmed": bool(ok), "estimate": float(est), "unit": c.unit,
                  "interval": [float(iv[0]), float(iv[1])], "evidence": ev + ".", "z": float(z),
                  "residual": {"channel": nm, "rms_without": before, "rms_with": after, "unit": _UNITS[nm],
                               "band_hz": band}}
+            if raw is not None:
+                f["estimate_noisy_travel"] = raw
             if ok:
                 correction.update(c.correction(th, st))
                 extra = [np.zeros_like(st.u[0]), np.zeros_like(st.u[0])] if extra is None else extra
