@@ -477,3 +477,24 @@ def test_consistency_keeps_a_difference_in_the_parameter_that_differs():
     cond = [{**e, "per_run": [{k: v for k, v in r.items() if not k.startswith("own_")} for r in e["per_run"]]}
             for e in entries]
     assert not check_consistency(cond[1], family=2)["consistent"]
+
+
+def test_a_run_that_reads_no_vehicles_value_is_not_tested_for_differs():
+    """A pitch-only run of a class E road whose model the progressive spring it lacks broke (1300 N
+    of residual for 2.5 N of force noise) read its own body mass x 5.3 +- 0.53 (campaign-nonlinear/
+    indep campaign 1, run_003). No vehicle has that: the run is listed as implausible and not tested,
+    and the four others, which agree, raise no "m3 differs" (it was raised at p = 1.8e-15)."""
+    from jaxdrift.campaign._joint import check_consistency
+
+    rows = [("run_000", 0.9819, 0.00216), ("run_001", 1.0550, 0.06769), ("run_002", 0.9714, 0.00011),
+            ("run_003", 5.3172, 0.52862), ("run_004", 0.9714, 0.00001)]
+    entry = {"parameter": "m3", "joint_estimate": 0.9714,
+             "per_run": [{"run": r, "estimate": e, "se": s, "weight": 1.0, "own_estimate": e, "own_se": s}
+                         for r, e, s in rows]}
+    res = check_consistency(entry, family=2)
+    assert res["implausible"] == ["run_003"] and res["runs_tested"] == 4
+    assert res["consistent"] and not res["disagreeing_runs"], res
+    # within the range, the same run is tested, and named
+    near = {**entry, "per_run": [dict(r, own_estimate=1.3, estimate=1.3, own_se=0.01) if r["run"] == "run_003" else r
+                                 for r in entry["per_run"]]}
+    assert [d["run"] for d in check_consistency(near, family=2)["disagreeing_runs"]] == ["run_003"]

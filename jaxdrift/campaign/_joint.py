@@ -344,7 +344,10 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     parameter is not read as one in another), its variance the sandwich variance plus the
     single-run resolution floor in quadrature (its single-run interval), the chi-square on runs - 1
     degrees of freedom, and the runs whose own estimate lies outside it; runs that cannot separate
-    the parameter from the others are listed in ``not_separable``. Both tests ask whether a
+    the parameter from the others are listed in ``not_separable``, and runs whose own estimate lies
+    outside the parameter's plausible range (``ParameterError.theta_range``: a body mass x 5.3, on a
+    pitch-only run of a rough road that its model could not fit, with 1300 N of residual for 2.5 N of
+    force noise) in ``implausible``: neither is tested. Both tests ask whether a
     difference exceeds :data:`DIFFERENCE_MARGIN` (each deviation shrunk by it towards 0): the claim
     is a vehicle that differs by more than the single-run diagnosis would call no error.
     ``family``: how many parameters the campaign tests; the scatter test
@@ -353,12 +356,15 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
     kept as ``meta``."""
     c = Cause(PARAMETER_ERROR, entry["parameter"])
     floor_se = _practical(c, None) / 1.96
+    lo, hi = _theta_bounds(c, None)
     meta = meta_analysis(entry)
-    ests, untested = [], []
+    ests, untested, implausible = [], [], []
     for r in entry["per_run"]:
         e, se = _tested(r)
         if e is None:
             untested.append(r["run"])
+        elif not lo < e - 1.0 < hi:  # no vehicle has it: the run's model broke down, not its vehicle
+            implausible.append(r["run"])
         else:
             ests.append((r["run"], e - 1.0, se ** 2 + floor_se ** 2))
     if ests:  # the centre: the inverse-variance mean of the estimates tested
@@ -376,7 +382,7 @@ def check_consistency(entry: dict, family: int = 1) -> dict:
             "z": z} for nm, e, v, z in _outlying_runs(ests, z_bonf, DIFFERENCE_MARGIN)]
     return {**entry, "meta": meta, "runs": len(entry["per_run"]), "runs_tested": n, "chi2": q, "dof": dof,
             "p_value": pval, "level": level, "consistent": pval >= level and not bad, "disagreeing_runs": bad,
-            **({"not_separable": untested} if untested else {})}
+            **({"not_separable": untested} if untested else {}), **({"implausible": implausible} if implausible else {})}
 
 
 def _beyond_margin(d, margin: float = DIFFERENCE_MARGIN):

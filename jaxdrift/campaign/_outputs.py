@@ -142,7 +142,9 @@ def summary_markdown(doc: dict) -> str:
                          + ("; left out: " + ", ".join(f"{d['run']} ({d['why']})" for d in c["left_out"])
                             if c.get("left_out") else "")
                          + ("; not tested (cannot separate it from the other shared parameters): "
-                            + ", ".join(c["not_separable"]) if c.get("not_separable") else ""))
+                            + ", ".join(c["not_separable"]) if c.get("not_separable") else "")
+                         + ("; not tested (its own estimate is outside the plausible range: its model did not fit "
+                            "the run): " + ", ".join(c["implausible"]) if c.get("implausible") else ""))
         lines += ["", "## Runs", "", "| run | logger | single-run findings | sensor effects (campaign) | gain (campaign) |",
                   "|---|---|---|---|---|"]
         for r in runs:
