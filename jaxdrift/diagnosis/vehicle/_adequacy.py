@@ -274,8 +274,13 @@ def _named(prob, st, terms, tests, scales, m, correction, st_raw=None) -> tuple[
             raw = None
             if st_raw is not None and prob.pipe.has_s[c.axle]:
                 # sized again on the travel as measured, its noise and all: what the noise did to
-                # the size, a share of it in the interval (``NOISE_SHIFT_SHARE``)
-                c_r, th_r, _, _ = _sized(prob, st_raw, c0, d, th, se, taken[:-1])
+                # the size, a share of it in the interval (``NOISE_SHIFT_SHARE``). Tested afresh on
+                # that travel's column, beside the terms already named: on a measured travel
+                # ``_refine`` keeps the size it is given
+                N_r = np.column_stack([d["N"], d["S"][:, taken[:-1]]])
+                col_r = _column(prob, st.p, c0.axle, c0.force(st_raw), nm)[:, None]
+                _, th_r, se_r, *_ = _channel_test(d["y"], N_r, col_r, fs, d["fc"])[0]
+                c_r, th_r, _, _ = _sized(prob, st_raw, c0, d, th_r, se_r, taken[:-1])
                 raw = float(c_r.to_estimate(th_r, st_raw))
                 w = NOISE_SHIFT_SHARE * abs(est - raw)
                 iv = [min(iv[0], est - w), max(iv[1], est + w)]
